@@ -1,0 +1,42 @@
+# hair_sim: every target bootstraps what it needs into .venv (Python 3.11).
+SHELL := /bin/bash
+VENV ?= .venv
+PY := $(VENV)/bin/python
+BOOT_PYTHON ?= $(shell command -v python3.11 || command -v python3)
+MSG_SRCS := $(shell find msg_defs -type f -not -name '*~')
+
+STAMP_DEPS := $(VENV)/.stamp-deps
+STAMP_MSGS := $(VENV)/.stamp-msgs
+STAMP_PKG := $(VENV)/.stamp-pkg
+
+.PHONY: setup test lint clean
+
+setup: $(STAMP_DEPS) $(STAMP_MSGS) $(STAMP_PKG)
+
+$(PY):
+	$(BOOT_PYTHON) -m venv $(VENV)
+
+# Pinned dependencies; reinstalled only when the requirement files change.
+$(STAMP_DEPS): requirements.txt constraints.txt | $(PY)
+	$(PY) -m pip install --disable-pip-version-check -q -r requirements.txt -c constraints.txt
+	touch $@
+
+# hair_sim_msgs, built with plain CMake into the venv prefix; rebuilt only when msg_defs/ changes.
+$(STAMP_MSGS): $(STAMP_DEPS) $(MSG_SRCS) tools/build_msgs.sh
+	tools/build_msgs.sh $(VENV) build/msg_defs
+	touch $@
+
+# hair_sim itself, editable; console scripts also go where `ros2 run` looks (<prefix>/lib/hair_sim).
+$(STAMP_PKG): $(STAMP_DEPS) setup.py setup.cfg package.xml resource/hair_sim tools/install_ros_prefix.py
+	$(PY) -m pip install --disable-pip-version-check -q --no-deps --no-build-isolation -e .
+	$(PY) tools/install_ros_prefix.py $(VENV)
+	touch $@
+
+test: setup
+	$(PY) -m pytest test
+
+lint: setup
+	$(PY) -m pytest test/test_flake8.py test/test_pep257.py
+
+clean:
+	rm -rf build $(VENV)
