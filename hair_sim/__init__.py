@@ -1,3 +1,8 @@
 """hair_sim: real-time strip-based hair with U-shape volume (Liang 2003) for ROS 2."""
 
+from hair_sim.modeling import (build_strips, HairstyleError, load_hairstyle, load_head,
+                               save_hairstyle)
+
 __version__ = '0.1.0'
+
+__all__ = ['HairstyleError', 'build_strips', 'load_hairstyle', 'load_head', 'save_hairstyle']

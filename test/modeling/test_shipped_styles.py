@@ -1,0 +1,82 @@
+"""The shipped hairstyles load, have the promised counts and sit on the default head."""
+
+import glob
+import os
+
+import numpy as np
+import pytest
+
+from hair_sim import paths
+from hair_sim.modeling import build_strips, load_hairstyle
+
+STYLES = sorted(glob.glob(os.path.join(paths.hairstyles_dir(), '*.yaml')))
+
+
+def test_at_least_four_styles_ship():
+    """thesis_long, thesis_short and two more are shipped."""
+    names = {os.path.basename(s)[:-5] for s in STYLES}
+    assert {'thesis_long', 'thesis_short'} <= names and len(names) >= 4
+
+
+@pytest.mark.parametrize('path', STYLES, ids=lambda p: os.path.basename(p))
+def test_style_sits_on_the_head(path):
+    """Roots within 1 mm of the scalp, no vertex inside a head sphere, roots cover the scalp."""
+    style = load_hairstyle(path)
+    strips = build_strips(style)
+    head = style.head
+    roots = strips.rest[:, 0]
+    assert np.abs(head.scalp_distance(roots)).max() < 1e-3
+    assert head.collision_distance(roots).min() > -1e-3
+    assert head.collision_distance(strips.rest[:, 1:]).min() > 0.0
+    assert np.all(np.isfinite(strips.rest))
+    assert head.in_hair_region(roots).all()
+    # The hair grown from those roots covers the hair region: almost every scalp point of
+    # the region has some strip point above it within 2 cm (seen from the head centre).
+    assert footprint_coverage(style, strips) > 0.95
+
+
+def footprint_coverage(style, strips, reach=0.02):
+    """Fraction of hair-region scalp samples with a strip point radially above within reach."""
+    head = style.head
+    n = 4000
+    i = np.arange(n) + 0.5
+    dirs = np.stack([np.cos(np.pi * (1 + 5 ** 0.5) * i) * np.sqrt(1 - (1 - 2 * i / n) ** 2),
+                     np.sin(np.pi * (1 + 5 ** 0.5) * i) * np.sqrt(1 - (1 - 2 * i / n) ** 2),
+                     1 - 2 * i / n], axis=1)
+    centre = head.projection_sphere[:3]
+    samples = head.nearest_on_scalp(centre + 0.3 * dirs)
+    samples = samples[head.in_hair_region(samples) & (head.scalp_distance(samples) > -1e-9)]
+    a, b = strips.rest[strips.strip_strands[:, 0]], strips.rest[strips.strip_strands[:, 1]]
+    f = np.linspace(0, 1, 4)[:, None, None, None]
+    a2 = np.concatenate([a, 0.5 * (a[:, 1:] + a[:, :-1])], axis=1)
+    b2 = np.concatenate([b, 0.5 * (b[:, 1:] + b[:, :-1])], axis=1)
+    dense = ((1 - f) * a2[None] + f * b2[None]).reshape(-1, 3)
+    foot = head.nearest_on_scalp(dense)
+    d2 = ((samples[:, None, :] - foot[None, :, :]) ** 2).sum(-1).min(axis=1)
+    return float((d2 < reach ** 2).mean())
+
+
+def test_thesis_long_counts():
+    """The thesis' sample style: about 46 strips of 10 vertices."""
+    style = load_hairstyle(paths.shipped_style('thesis_long'))
+    strips = build_strips(style)
+    assert strips.n_strips == 46 and strips.n_vertices == 10
+    assert strips.rest.shape == (92, 10, 3)
+
+
+def test_short_style_is_derived_from_the_long_one_by_control_points_only():
+    """thesis_short has the long style's patches and roots, only moved control points."""
+    long = load_hairstyle(paths.shipped_style('thesis_long'))
+    short = load_hairstyle(paths.shipped_style('thesis_short'))
+    assert [p.name for p in long.patches] == [p.name for p in short.patches]
+    for a, b in zip(long.patches, short.patches):
+        assert a.points.shape == b.points.shape and a.strips == b.strips
+        assert (a.degree_u, a.degree_v) == (b.degree_u, b.degree_v)
+        np.testing.assert_array_equal(a.points[:, 0], b.points[:, 0])
+    assert (long.vertices, long.render_rows) == (short.vertices, short.render_rows)
+
+    def length(style):
+        r = build_strips(style).rest
+        return np.linalg.norm(np.diff(r, axis=1), axis=2).sum(axis=1).mean()
+
+    assert length(short) < 0.6 * length(long)
