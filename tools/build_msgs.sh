@@ -16,6 +16,7 @@ old_npinc=/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/inclu
 { grep -rlE "$old_inc|$old_npinc" "$venv/share" --include='*.cmake' || true; } \
   | while read -r f; do sed -i -e "s#${old_npinc}#${npinc}#g" -e "s#${old_inc}#${inc}#g" "$f"; done
 
+mkdir -p "$build"
 export AMENT_PREFIX_PATH="$venv" CMAKE_PREFIX_PATH="$venv" PATH="$venv/bin:$PATH"
 cmake -S msg_defs -B "$build" -DCMAKE_INSTALL_PREFIX="$venv" -DPython3_EXECUTABLE="$py" \
   -DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release -Wno-dev > "$build.log" 2>&1 \

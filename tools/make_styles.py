@@ -100,13 +100,13 @@ def line_hairs(start_dir, end_dir, n, heading, length, n_ctrl, **kw):
 
 
 def patch(name, hairs, strips, degree=(3, 3)):
-    """A patch mapping for the YAML file."""
+    """Return a patch mapping for the YAML file."""
     return {'name': name, 'degree': list(degree), 'strips': strips,
             'control_hairs': [[[round(float(x), 6) for x in p] for p in h] for h in hairs]}
 
 
 def style(name, patches, vertices=10, rows=30, cols=3, color=(0.30, 0.19, 0.11), seed=1):
-    """A style mapping for the YAML file."""
+    """Return a style mapping for the YAML file."""
     return {'name': name, 'head': 'default_adult',
             'lod': {'vertices': vertices, 'render_rows': rows, 'render_columns': cols},
             'material': {'color': list(color),

@@ -47,12 +47,12 @@ class Patch:
 
     @property
     def n_hairs(self):
-        """Number of control hairs."""
+        """Return the number of control hairs."""
         return self.points.shape[0]
 
     @property
     def n_points(self):
-        """Number of control points on each control hair."""
+        """Return the number of control points on each control hair."""
         return self.points.shape[1]
 
 
@@ -73,7 +73,7 @@ class Hairstyle:
 
     @property
     def n_strips(self):
-        """Number of strips simulated (physics LOD)."""
+        """Return the number of strips simulated (physics LOD)."""
         return sum(p.strips for p in self.patches)
 
     def to_dict(self):

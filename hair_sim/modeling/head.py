@@ -70,7 +70,7 @@ class HeadModel:
         return h['back_z'] + s * (h['front_z'] - h['back_z'])
 
     def in_hair_region(self, points):
-        """True for points (..., 3) above the hairline (the region hair should cover)."""
+        """Return True for points (..., 3) above the hairline (where hair should be)."""
         p = np.asarray(points, dtype=np.float64)
         return p[..., 2] >= self.hairline_z(p[..., 0])
 

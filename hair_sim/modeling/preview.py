@@ -35,6 +35,7 @@ def export_obj(style, path, positions=None):
     fd, tmp = tempfile.mkstemp(dir=directory, suffix='.tmp')
     with os.fdopen(fd, 'w') as f:
         f.write('\n'.join(lines) + '\n')
+    os.chmod(tmp, 0o644)
     os.replace(tmp, path)
     return path
 
@@ -96,5 +97,6 @@ def render_png(style, path, positions=None, title=None, views=None):
     os.close(fd)
     fig.savefig(tmp)
     plt.close(fig)
+    os.chmod(tmp, 0o644)
     os.replace(tmp, path)
     return path

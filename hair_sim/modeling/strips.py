@@ -26,17 +26,17 @@ class StripSet:
 
     @property
     def n_strands(self):
-        """Number of simulated strands (two per strip)."""
+        """Return the number of simulated strands (two per strip)."""
         return self.rest.shape[0]
 
     @property
     def n_vertices(self):
-        """Vertices per strand, root included."""
+        """Return the vertices per strand, root included."""
         return self.rest.shape[1]
 
     @property
     def n_strips(self):
-        """Number of strips."""
+        """Return the number of strips."""
         return self.strip_strands.shape[0]
 
 

@@ -41,6 +41,7 @@ def write_yaml_atomic(path, data):
     fd, tmp = tempfile.mkstemp(prefix='.' + os.path.basename(path) + '.', suffix='.tmp',
                                dir=directory)
     try:
+        os.fchmod(fd, 0o644)
         with os.fdopen(fd, 'w') as f:
             f.write(text)
             f.flush()

@@ -15,7 +15,7 @@ from hair_sim.modeling import yamlio
 
 @pytest.fixture
 def style():
-    """The shipped long style."""
+    """Load the shipped long style."""
     return load_hairstyle(paths.shipped_style('thesis_long'))
 
 
@@ -92,7 +92,7 @@ def test_save_into_missing_directory_fails_cleanly(style, tmp_path):
 
 
 def test_preview_command_writes_obj_and_png(tmp_path):
-    """python -m hair_sim.modeling writes a parsable OBJ and a non-empty PNG."""
+    """Check that `python -m hair_sim.modeling` writes a parsable OBJ and a non-empty PNG."""
     obj, png = str(tmp_path / 's.obj'), str(tmp_path / 's.png')
     out = subprocess.run([sys.executable, '-m', 'hair_sim.modeling',
                           paths.shipped_style('bob_fringe'), '--export', obj, '--png', png],

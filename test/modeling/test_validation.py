@@ -28,14 +28,14 @@ def write(tmp_path, data, name='style.yaml'):
 
 
 def broken(mutate):
-    """A copy of the base style with `mutate` applied."""
+    """Return a copy of the base style with `mutate` applied."""
     d = copy.deepcopy(BASE)
     mutate(d)
     return d
 
 
 def expect(tmp_path, data, *fragments):
-    """Loading data must raise HairstyleError whose message has every fragment."""
+    """Load data, expecting a HairstyleError whose message has every fragment."""
     path = write(tmp_path, data)
     with pytest.raises(HairstyleError) as info:
         load_hairstyle(path)
@@ -60,7 +60,8 @@ def test_mismatched_control_point_counts(tmp_path):
 
 def test_one_control_hair(tmp_path):
     """A patch needs at least two control hairs."""
-    d = broken(lambda d: d['patches'][0].update(control_hairs=d['patches'][0]['control_hairs'][:1]))
+    d = broken(lambda d: d['patches'][0].update(
+        control_hairs=d['patches'][0]['control_hairs'][:1]))
     expect(tmp_path, d, "patch 'crown'", 'at least 2')
 
 
