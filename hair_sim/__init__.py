@@ -2,7 +2,9 @@
 
 from hair_sim.modeling import (build_strips, HairstyleError, load_hairstyle, load_head,
                                save_hairstyle)
+from hair_sim.physics import DEFAULT_DT, HairSimulator, PhysicsParams
 
 __version__ = '0.1.0'
 
-__all__ = ['HairstyleError', 'build_strips', 'load_hairstyle', 'load_head', 'save_hairstyle']
+__all__ = ['DEFAULT_DT', 'HairSimulator', 'HairstyleError', 'PhysicsParams', 'build_strips',
+           'load_hairstyle', 'load_head', 'save_hairstyle']

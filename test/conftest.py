@@ -22,13 +22,3 @@ def ros_context():
         yield context
     finally:
         rclpy.try_shutdown(context=context)
-
-
-def spin_until(executor, predicate, timeout_s):
-    """Spin `executor` until `predicate()` is true or `timeout_s` passes; return predicate()."""
-    import time
-
-    deadline = time.monotonic() + timeout_s
-    while not predicate() and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.05)
-    return predicate()

@@ -8,8 +8,8 @@ import numpy as np
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.serialization import deserialize_message, serialize_message
 
-from conftest import spin_until
 from helpers.mesh_publisher import probe_mesh
+from helpers.ros import spin_until
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 

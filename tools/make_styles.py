@@ -124,7 +124,7 @@ def shorten(long_style, factor):
             arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0),
                                                                   axis=1))])
             for k in range(2, p.n_points):    # keep the root and the lift-off point
-                a = factor * arc[k]
+                a = arc[1] + factor * (arc[k] - arc[1])
                 new = np.array([np.interp(a, arc, pts[:, c]) for c in range(3)])
                 out = out.with_control_point(pi, h, k, np.round(new, 6))
     return out

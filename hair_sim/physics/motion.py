@@ -1,0 +1,155 @@
+"""
+Head motion from stamped poses: pose, velocity and acceleration at simulation times.
+
+Poses arrive stamped (seconds) and are mapped onto the simulator's clock. They may jitter,
+repeat, come out of order, jump in time or teleport; each case is sorted here:
+
+- repeated or older stamps are dropped (counted);
+- a stamp far ahead of or behind the simulator clock re-anchors the mapping (a clock jump);
+- a jump both large (over `TELEPORT_DISTANCE` / `TELEPORT_ANGLE`) and faster than the
+  limits is a teleport: the hair is carried rigidly with the head, no inertial kick;
+- jitter is smoothed by low-passing the velocity and clamping the acceleration;
+- the very first pose places the head (like a teleport): nothing is known before it.
+"""
+
+from collections import deque
+import math
+
+import numpy as np
+
+TELEPORT_DISTANCE = 0.25     # m: smaller jumps are jitter, whatever their implied speed
+TELEPORT_ANGLE = 0.6         # rad
+MAX_GAP = 1.0                # s a sample may lag the simulator before re-anchoring
+MAX_LEAD = 0.5               # s a sample may run ahead of the simulator before re-anchoring
+HISTORY = 32                 # samples kept (bounded memory under floods)
+
+
+def quat_to_matrix(q):
+    """Return the rotation matrix of a unit quaternion (x, y, z, w)."""
+    x, y, z, w = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def rotation_vector(R):
+    """Return the axis-angle vector (rad) of rotation matrix R."""
+    c = np.clip((np.trace(R) - 1.0) * 0.5, -1.0, 1.0)
+    angle = math.acos(c)
+    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    s = math.sin(angle)
+    if angle < 1e-9:
+        return 0.5 * v
+    if s < 1e-6:                                   # near pi: axis from the diagonal
+        axis = np.sqrt(np.maximum((np.diag(R) + 1.0) * 0.5, 0.0))
+        k = int(np.argmax(axis))
+        axis[np.arange(3) != k] *= np.sign(R[k, np.arange(3) != k] + R[np.arange(3) != k, k])
+        return axis / np.linalg.norm(axis) * angle
+    return v * (angle / (2.0 * s))
+
+
+def slerp(q0, q1, f):
+    """Spherical interpolation between unit quaternions (x, y, z, w)."""
+    d = float(np.dot(q0, q1))
+    if d < 0.0:
+        q1, d = -q1, -d
+    if d > 0.9995:
+        q = q0 + f * (q1 - q0)
+        return q / np.linalg.norm(q)
+    th = math.acos(d)
+    return (math.sin((1 - f) * th) * q0 + math.sin(f * th) * q1) / math.sin(th)
+
+
+class HeadMotion:
+    """Accept stamped head poses and answer the head pose at a simulator time."""
+
+    def __init__(self, params):
+        self.params = params
+        self.samples = deque(maxlen=HISTORY)       # (sim time, stamp, position, quaternion)
+        self.offset = None                         # stamp - simulator time
+        self.counts = {'accepted': 0, 'invalid': 0, 'repeated': 0, 'out_of_order': 0,
+                       'clock_jump': 0, 'teleport': 0, 'normalised': 0}
+        self.teleported = False
+
+    def reset(self):
+        """Forget every sample (the counts stay)."""
+        self.samples.clear()
+        self.offset = None
+        self.teleported = False
+
+    def add(self, stamp, position, quaternion, now):
+        """Add a pose stamped `stamp` (s) while the simulator is at `now`; return a verdict."""
+        try:
+            p = np.array(position, dtype=np.float64).reshape(3)
+            q = np.array(quaternion, dtype=np.float64).reshape(4)
+            stamp = float(stamp)
+        except (TypeError, ValueError):
+            self.counts['invalid'] += 1
+            return 'invalid'
+        n = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float('nan')
+        if not (np.all(np.isfinite(p)) and math.isfinite(n) and math.isfinite(stamp)) \
+                or n < 1e-6 or np.abs(p).max() > 1e6:
+            self.counts['invalid'] += 1
+            return 'invalid'
+        verdict = 'ok'
+        if abs(n - 1.0) > 1e-6:
+            self.counts['normalised'] += 1
+            verdict = 'normalised'
+        q = q / n
+        if self.samples:
+            last_stamp = self.samples[-1][1]
+            if stamp == last_stamp:
+                self.counts['repeated'] += 1
+                return 'repeated'
+            if stamp < last_stamp:
+                self.counts['out_of_order'] += 1
+                return 'out_of_order'
+        if self.offset is None:
+            # the first pose places the head: the hair is carried there rigidly, no kick
+            self.offset = stamp - now
+            self.teleported = True
+        t = stamp - self.offset
+        if self.samples and (t > now + MAX_LEAD or t < now - MAX_GAP):
+            self.offset = stamp - now
+            t = now
+            self.counts['clock_jump'] += 1
+            verdict = 'clock_jump'
+            while self.samples and self.samples[-1][0] >= t:
+                self.samples.pop()
+        if self.samples:
+            _, _, p0, q0 = self.samples[-1]
+            # the head will cover the jump between now (or the last sample) and t
+            dt = max(t - max(self.samples[-1][0], now), 1e-3)
+            dist = float(np.linalg.norm(p - p0))
+            ang = 2.0 * math.acos(min(1.0, abs(float(np.dot(q, q0)))))
+            if (dist > TELEPORT_DISTANCE and dist / dt > self.params.max_head_speed) or \
+                    (ang > TELEPORT_ANGLE and ang / dt > self.params.max_head_angular_speed):
+                self.counts['teleport'] += 1
+                self.samples.clear()
+                self.teleported = True
+                verdict = 'teleport'
+        self.samples.append((t, stamp, p, q))
+        self.counts['accepted'] += 1
+        return verdict
+
+    def pose_at(self, t):
+        """Return (position, quaternion) of the head at simulator time t, or None if unknown."""
+        if not self.samples:
+            return None
+        s = self.samples
+        if t >= s[-1][0]:
+            return s[-1][2], s[-1][3]
+        if t <= s[0][0]:
+            return s[0][2], s[0][3]
+        for i in range(len(s) - 1, 0, -1):
+            if s[i - 1][0] <= t:
+                t0, _, p0, q0 = s[i - 1]
+                t1, _, p1, q1 = s[i]
+                f = (t - t0) / (t1 - t0)
+                return p0 + f * (p1 - p0), slerp(q0, q1, f)
+        return s[0][2], s[0][3]
+
+    def settled(self, t):
+        """Return True when no sample lies after t (the head is holding its last pose)."""
+        return not self.samples or t >= self.samples[-1][0]

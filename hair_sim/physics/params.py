@@ -1,0 +1,128 @@
+"""
+Physical parameters of the solver: SI defaults, where each comes from, and their ranges.
+
+A simulated strand stands for half a strip, a bundle of `hairs_per_strand` real hairs.
+"""
+
+from dataclasses import asdict, dataclass, fields
+import math
+
+# name: (low, high) inclusive ranges; the node declares the same ranges to ROS.
+RANGES = {
+    'hair_density': (100.0, 5000.0),
+    'hair_radius': (5e-6, 2e-4),
+    'hairs_per_strand': (1.0, 20000.0),
+    'youngs_modulus': (1e6, 2e10),
+    'stiffness_scale': (0.0, 100.0),
+    'damping': (0.0, 200.0),
+    'gravity': (0.0, 50.0),
+    'drag_coefficient': (0.0, 5.0),
+    'drag_width': (0.0, 0.1),
+    'air_density': (0.0, 5.0),
+    'collision_stiffness': (0.0, 1000.0),
+    'collision_damping': (0.0, 10.0),
+    'neighbor_stiffness': (0.0, 100.0),
+    'wall_stiffness': (0.0, 100.0),
+    'wall_distance': (0.0, 0.05),
+    'scalp_stiffness': (0.0, 100.0),
+    'scalp_spring_reach': (0.0, 0.2),
+    'max_wind_speed': (0.0, 100.0),
+    'sleep_speed': (0.0, 1.0),
+    'sleep_delay': (0.0, 10.0),
+    'max_head_speed': (0.1, 1000.0),
+    'max_head_angular_speed': (0.1, 1000.0),
+    'max_head_acceleration': (1.0, 10000.0),
+    'motion_smoothing': (0.0, 1.0),
+}
+INTEGRATORS = ('explicit', 'implicit')
+
+
+@dataclass
+class PhysicsParams:
+    """Solver parameters; every value is SI. The sources are in the comments."""
+
+    # Material of one strand (a bundle of hairs), after Robbins, "Chemical and Physical
+    # Behavior of Human Hair": keratin density ~1300 kg/m^3, fibre radius 30-50 um, Young's
+    # modulus 2-5 GPa. 500 hairs per strand: a 46-strip style of 92 strands then holds about
+    # 46 000 hairs, half a real head; the other half is what the U-shape texture suggests.
+    hair_density: float = 1300.0        # kg/m^3
+    hair_radius: float = 35e-6          # m
+    hairs_per_strand: float = 500.0
+    youngs_modulus: float = 4e9         # Pa
+    # Hinge spring of eq. 3: k = stiffness_scale * E * I_area * hairs / l (a cantilever of
+    # unbonded fibres); 1.0 is that estimate, raise it for gelled or styled hair.
+    stiffness_scale: float = 1.0
+    # gamma_i / I_i of eq. 1 (1/s). 12/s gives a damping ratio of about 0.12 at the default
+    # hinge frequency: hair swings a few times and settles within about 1 s.
+    damping: float = 12.0
+    gravity: float = 9.81               # m/s^2, along -z of the world frame
+    # Wind drag on a segment: 0.5 * rho_air * Cd * width * l * |v_perp| v_perp. Cd ~1.2 for
+    # a cylinder at the Reynolds numbers of hair; width is the bundle's effective width.
+    drag_coefficient: float = 1.2
+    drag_width: float = 0.006           # m
+    air_density: float = 1.2            # kg/m^3
+    # Reaction constraint of eq. 8: k (N/m) and c (N s/m) per metre of strand, so that, like
+    # the mass, they scale with segment length. Kept soft enough for the explicit force
+    # term at 60 Hz; a position guard (see kernels) stops deep penetration.
+    collision_stiffness: float = 1.5
+    collision_damping: float = 0.06
+    # Springs of thesis 5.2 (eq. 11), N/m per metre of strand: type 1 between facing
+    # strands of neighbouring strips, type 2 from a vertex to its neighbour's projected
+    # wall (inserted only within wall_distance), type 3 from a vertex to its own scalp
+    # projection (thickness), for vertices whose rest distance to the scalp is below
+    # scalp_spring_reach. Their frequency sqrt(3 k / lambda) stays below 70 rad/s.
+    neighbor_stiffness: float = 0.3
+    wall_stiffness: float = 1.5
+    wall_distance: float = 0.002        # m
+    scalp_stiffness: float = 0.6
+    scalp_spring_reach: float = 0.03    # m
+    inter_strip: bool = True            # thesis fig. 5.1: inter-strip handling on/off
+    collisions: bool = True
+    integrator: str = 'implicit'        # 'explicit' (thesis eq. 6) or 'implicit'
+    # Inputs beyond these are clamped (wind) or treated as a teleport (head).
+    max_wind_speed: float = 40.0        # m/s
+    max_head_speed: float = 10.0        # m/s
+    max_head_angular_speed: float = 40.0  # rad/s
+    max_head_acceleration: float = 300.0  # m/s^2 (about 30 g)
+    motion_smoothing: float = 0.02      # s, low-pass time constant of head velocity
+    # Event-triggered animation (thesis 4.1): sleep when every vertex moves slower than
+    # sleep_speed (m/s) about its segment's start for sleep_delay seconds, inputs steady.
+    sleep_speed: float = 0.002
+    sleep_delay: float = 0.25
+
+    def validate(self):
+        """Raise ValueError naming the first parameter that is out of range or mistyped."""
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name in RANGES:
+                lo, hi = RANGES[f.name]
+                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                    raise ValueError('%s must be a number, not %r' % (f.name, v))
+                if not (math.isfinite(v) and lo <= v <= hi):
+                    raise ValueError('%s = %r is outside [%g, %g]' % (f.name, v, lo, hi))
+            elif f.type in ('bool', bool) and not isinstance(v, bool):
+                raise ValueError('%s must be true or false, not %r' % (f.name, v))
+        if self.integrator not in INTEGRATORS:
+            raise ValueError('integrator must be one of %s, not %r'
+                             % (', '.join(INTEGRATORS), self.integrator))
+        return self
+
+    def replaced(self, **changes):
+        """Return a validated copy with `changes` applied; unknown names raise ValueError."""
+        unknown = set(changes) - {f.name for f in fields(self)}
+        if unknown:
+            raise ValueError('unknown parameter(s): %s' % ', '.join(sorted(unknown)))
+        d = asdict(self)
+        d.update(changes)
+        return PhysicsParams(**d).validate()
+
+    @property
+    def linear_density(self):
+        """Return the mass per metre of one strand (kg/m)."""
+        return self.hairs_per_strand * math.pi * self.hair_radius ** 2 * self.hair_density
+
+    @property
+    def bending_stiffness(self):
+        """Return E * I of one strand (N m^2): unbonded fibres add up."""
+        return (self.stiffness_scale * self.youngs_modulus * self.hairs_per_strand
+                * math.pi * self.hair_radius ** 4 / 4.0)

@@ -1,0 +1,352 @@
+"""HairSimulator: the thin class users call; state lives in arrays handed to the kernels."""
+
+import math
+import time as _time
+
+import numpy as np
+
+from hair_sim.modeling.strips import build_strips
+from hair_sim.physics import kernels
+from hair_sim.physics.motion import HeadMotion, quat_to_matrix, rotation_vector
+from hair_sim.physics.params import PhysicsParams
+from hair_sim.physics.wind import Wind
+
+DEFAULT_DT = 1.0 / 240.0       # s: 4 steps per 60 Hz frame (pendulum period within 1 %)
+MAX_DT = 0.1
+STABILITY_MARGIN = 0.9         # explicit terms need omega * dt < 2 * margin
+
+
+class HairSimulator:
+    """
+    Simulate every strand of a hairstyle (thesis ch. 4-5).
+
+        sim = HairSimulator(style, integrator='implicit')
+        sim.set_head_pose(t, position_xyz, quaternion_xyzw)
+        sim.set_wind((3, 0, 0), turbulence=0.2, seed=1)
+        sim.step(1 / 240)
+        sim.strand_positions()        # (n_strands, n_vertices, 3), world frame
+    """
+
+    def __init__(self, style, **params):
+        self._init_common(params)
+        self.set_style(style)
+
+    # ----------------------------------------------------------------- set-up
+    @classmethod
+    def from_strands(cls, rest, head, pairs=None, **params):
+        """Simulate bare strands (n_strands, n_vertices, 3, head frame) without a style."""
+        sim = cls.__new__(cls)
+        sim._init_common(params)
+        sim._set_geometry(None, np.asarray(rest, dtype=np.float64), head,
+                          np.zeros((0, 2), np.int64) if pairs is None else pairs)
+        return sim
+
+    def _init_common(self, params):
+        self.params = PhysicsParams().replaced(**params)
+        self.motion = HeadMotion(self.params)
+        self.wind = Wind()
+        self.time = 0.0
+        self.counters = {'steps': 0, 'awake_steps': 0, 'segment_updates': 0,
+                         'kernel_calls': 0, 'broad_phase_checks': 0, 'contacts': 0,
+                         'wall_springs': 0, 'recharts': 0, 'guard_moves': 0, 'wakes': 0,
+                         'turn_clamps': 0}
+        self.last_step_time = 0.0
+        self._R = np.eye(3)
+        self._p = np.zeros(3)
+
+    def set_style(self, style):
+        """Tessellate `style` (thesis 6.2) and start its strands at rest under the head."""
+        strips = build_strips(style)
+        self._set_geometry(style, strips.rest.copy(), style.head, strips.neighbor_pairs)
+        self.strips = strips
+
+    def _set_geometry(self, style, rest, head, pairs):
+        """Build every per-segment array from rest strands (head frame)."""
+        self.rest_guarded = kernels.guard_rest_shape(rest, np.ascontiguousarray(head.collision))
+        seg = np.diff(rest, axis=1)
+        length = np.linalg.norm(seg, axis=2)
+        if length.min() < 1e-5:
+            raise ValueError('a segment is shorter than 0.01 mm')
+        self.style = style
+        self.strips = None
+        self.rest = rest
+        self.head = head
+        self.root_head = np.ascontiguousarray(rest[:, 0])
+        self.rest_dir = np.ascontiguousarray(seg / length[..., None])
+        self.length = np.ascontiguousarray(length)
+        self.reach = length.sum(axis=1)
+        self.spheres_head = np.ascontiguousarray(self.head.collision)
+        self.n_scalp = len(self.head.scalp)
+        if self.spheres_head.shape[0] > 63:
+            raise ValueError('at most 63 collision spheres are supported')
+        n_s, n_seg = length.shape
+        self.pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
+        self.rest1 = np.linalg.norm(rest[self.pairs[:, 1]] - rest[self.pairs[:, 0]], axis=2) \
+            if len(self.pairs) else np.zeros((0, n_seg + 1))
+        scalp_head = np.ascontiguousarray(self.head.scalp)
+        self.wall_sign = np.ones((len(self.pairs), n_seg + 1, 2))
+        for q, (a, b) in enumerate(self.pairs):
+            for j in range(1, n_seg + 1):
+                for side, (me, other) in enumerate(((a, b), (b, a))):
+                    sd = kernels.wall_signed_distance(rest, scalp_head, me, other, j)[0]
+                    self.wall_sign[q, j, side] = 1.0 if sd >= 0 else -1.0
+        proj = self.head.nearest_on_scalp(rest)
+        d3 = np.linalg.norm(rest - proj, axis=2)
+        self.rest3 = np.where(d3 < self.params.scalp_spring_reach, d3, -1.0)
+        self.rest3[:, 0] = -1.0
+        self.theta = np.zeros((n_s, n_seg))
+        self.phi = np.zeros((n_s, n_seg))
+        self.chart = np.zeros((n_s, n_seg, 3, 3))
+        self.f_dist = np.zeros((n_s, n_seg, 3))
+        self.f_end = np.zeros((n_s, n_seg, 3))
+        self.masks = np.zeros(n_s, dtype=np.int64)
+        self.stats = np.zeros(5)
+        self._update_material()
+        self._place_at_rest()
+
+    def _update_material(self):
+        """Recompute per-segment mass, inertia and hinge stiffness from the parameters."""
+        p = self.params
+        self.mass = p.linear_density * self.length
+        self.inv_inertia = 3.0 / (self.mass * self.length ** 2)       # rod about its end
+        self.k_hinge = p.bending_stiffness / self.length              # cantilever, eq. 3
+        self.gravity = np.array([0.0, 0.0, -p.gravity])
+
+    def _place_at_rest(self):
+        """Put every strand at its rest shape under the current head pose, at rest."""
+        world_dir = np.ascontiguousarray(self.rest_dir @ self._R.T)
+        kernels.init_charts(world_dir, self.chart, self.theta, self.phi)
+        self.theta_prev = self.theta.copy()
+        self.phi_prev = self.phi.copy()
+        rest_world = self.rest @ self._R.T + self._p
+        self.pos = np.ascontiguousarray(rest_world)
+        self.pos_prev = self.pos.copy()
+        self._v = np.zeros(3)
+        self._w = np.zeros(3)
+        self._a = np.zeros(3)
+        self._alpha = np.zeros(3)
+        self._h_prev = DEFAULT_DT
+        self._quiet = 0.0
+        self.sleeping = False
+        self._wake_reason = 'start'
+        self.stats[3] = 1.0
+
+    def reset(self):
+        """Put the hair back at its rest shape under the current head pose, awake."""
+        self._place_at_rest()
+
+    # ----------------------------------------------------------------- inputs
+    def set_head_pose(self, stamp_s, position_xyz, quaternion_xyzw):
+        """Add a stamped head pose (world frame); returns the verdict string (see motion)."""
+        return self.motion.add(stamp_s, position_xyz, quaternion_xyzw, self.time)
+
+    def set_wind(self, velocity_xyz, turbulence=0.0, seed=0):
+        """Set the wind (m/s, world frame); speeds above max_wind_speed are clamped."""
+        v = np.array(velocity_xyz, dtype=np.float64).reshape(3)
+        if not np.all(np.isfinite(v)) or not math.isfinite(float(turbulence)):
+            raise ValueError('wind must be finite')
+        speed = float(np.linalg.norm(v))
+        clamped = speed > self.params.max_wind_speed
+        if clamped:
+            v *= self.params.max_wind_speed / speed
+        turbulence = min(max(float(turbulence), 0.0), 1.0)
+        old = (self.wind.velocity.copy(), self.wind.turbulence, self.wind.seed)
+        self.wind.set(v, turbulence, seed)
+        if not (np.array_equal(old[0], v) and old[1] == turbulence and old[2] == self.wind.seed):
+            self._wake('wind')
+        return 'clamped' if clamped else 'ok'
+
+    def set_params(self, **changes):
+        """Change parameters (validated, stability-checked); the old ones stay on error."""
+        new = self.params.replaced(**changes)
+        reason = stability_problem(new, self, DEFAULT_DT)
+        if reason:
+            raise ValueError(reason)
+        self.params = new
+        self.motion.params = new
+        self._update_material()
+        if 'scalp_spring_reach' in changes:
+            proj = self.head.nearest_on_scalp(self.rest)
+            d3 = np.linalg.norm(self.rest - proj, axis=2)
+            self.rest3 = np.where(d3 < new.scalp_spring_reach, d3, -1.0)
+            self.rest3[:, 0] = -1.0
+        self._wake('params')
+
+    def _wake(self, reason):
+        if self.sleeping:
+            self.counters['wakes'] += 1
+        self.sleeping = False
+        self._quiet = 0.0
+        self._wake_reason = reason
+
+    # ----------------------------------------------------------------- stepping
+    def _advance_head(self, t, h):
+        """Move the head to its pose at time t; return True if it moved."""
+        pose = self.motion.pose_at(t)
+        if pose is None:
+            return False
+        p_new = pose[0]
+        R_new = quat_to_matrix(pose[1])
+        if self.motion.teleported:                  # carry the hair rigidly, no kick
+            self.motion.teleported = False
+            dR = R_new @ self._R.T
+            kernels.rotate_charts(self.chart, dR)
+            for arr in (self.pos, self.pos_prev):
+                arr[:] = (arr - self._p) @ dR.T + p_new
+            self._R, self._p = R_new, p_new.copy()
+            self._v[:] = 0.0
+            self._w[:] = 0.0
+            self._a[:] = 0.0
+            self._alpha[:] = 0.0
+            self._wake('teleport')
+            return True
+        moved = (np.abs(p_new - self._p).max() > 1e-9 or np.abs(R_new - self._R).max() > 1e-9)
+        p = self.params
+        beta = h / (p.motion_smoothing + h)
+        v_raw = (p_new - self._p) / h
+        w_raw = rotation_vector(R_new @ self._R.T) / h
+        v_f = self._v + beta * (v_raw - self._v)
+        w_f = self._w + beta * (w_raw - self._w)
+        a = (v_f - self._v) / h
+        alpha = (w_f - self._w) / h
+        amax = p.max_head_acceleration
+        na = np.linalg.norm(a)
+        if na > amax:
+            a *= amax / na
+        nal = np.linalg.norm(alpha)
+        if nal > amax / 0.1:
+            alpha *= (amax / 0.1) / nal
+        self._v, self._w, self._a, self._alpha = v_f, w_f, a, alpha
+        self._R, self._p = R_new, p_new.copy()
+        return moved
+
+    def _head_still(self):
+        return (np.abs(self._v).max() < 1e-4 and np.abs(self._w).max() < 1e-4
+                and np.abs(self._a).max() < 1e-3)
+
+    def step(self, dt=DEFAULT_DT):
+        """Advance the simulation by dt seconds; return False when asleep (no work done)."""
+        h = float(dt)
+        if not (math.isfinite(h) and 0.0 < h <= MAX_DT):
+            raise ValueError('dt must be in (0, %g] s, not %r' % (MAX_DT, dt))
+        t0 = _time.perf_counter()
+        t = self.time + h
+        self.counters['steps'] += 1
+        moved = self._advance_head(t, h)
+        if moved:
+            self._wake('head')
+        if self.sleeping and self.wind.steady and (moved or not self._head_still()):
+            self._wake('head')
+        if self.sleeping and not self.wind.steady:
+            self._wake('wind')
+        if self.sleeping:
+            self.time = t
+            self.last_step_time = _time.perf_counter() - t0
+            return False
+        self._simulate(t, h)
+        rate = self.stats[0]
+        inputs_steady = self.wind.steady and self._head_still()
+        if rate < self.params.sleep_speed and inputs_steady:
+            self._quiet += h
+            if self._quiet >= self.params.sleep_delay:
+                self.sleeping = True
+                self.theta_prev[:] = self.theta
+                self.phi_prev[:] = self.phi
+                self.pos_prev[:] = self.pos
+        else:
+            self._quiet = 0.0
+        self.time = t
+        self.last_step_time = _time.perf_counter() - t0
+        return True
+
+    def _simulate(self, t, h):
+        """One awake step: forces (eqs. 5, 7-11), then eq. 1 root to tip with the guard."""
+        p = self.params
+        R, head_p = self._R, self._p
+        roots = self.root_head @ R.T + head_p
+        r = roots - head_p
+        w, alpha = self._w, self._alpha
+        root_acc = self._a + np.cross(alpha, r) + np.cross(w, np.cross(w, r))
+        spheres = self.spheres_head.copy()
+        spheres[:, :3] = self.spheres_head[:, :3] @ R.T + head_p
+        sphere_vel = self._v + np.cross(w, spheres[:, :3] - head_p)
+        c = self.counters
+        if p.collisions:
+            c['broad_phase_checks'] += kernels.strand_sphere_masks(roots, self.reach, spheres,
+                                                                   self.masks)
+        wind_on = self.wind.active
+        drag = 0.5 * p.air_density * p.drag_coefficient * p.drag_width
+        kernels.external_forces(self.pos, self.pos_prev, self._h_prev, self.mass, self.length,
+                                root_acc, self.gravity, wind_on, self.wind.velocity,
+                                self.wind.amplitude, self.wind.mode_dir, self.wind.mode_k,
+                                self.wind.mode_w, self.wind.mode_phase, t, drag,
+                                self.f_dist, self.f_end)
+        c['kernel_calls'] += 1
+        if p.collisions:
+            c['contacts'] += kernels.reaction_constraint_forces(
+                self.pos, self.pos_prev, self._h_prev, self.length, spheres, sphere_vel,
+                self.masks, p.collision_stiffness, p.collision_damping, self.f_dist, self.f_end)
+            c['kernel_calls'] += 1
+        if p.inter_strip and len(self.pairs):
+            c['wall_springs'] += kernels.strip_springs(
+                self.pos, self.length, np.ascontiguousarray(spheres[:self.n_scalp]), self.pairs,
+                self.rest1,
+                p.neighbor_stiffness, self.wall_sign, p.wall_stiffness, p.wall_distance,
+                self.rest3, p.scalp_stiffness, self.f_end)
+            c['kernel_calls'] += 1
+        integ = kernels.EXPLICIT if p.integrator == 'explicit' else kernels.IMPLICIT
+        c['segment_updates'] += kernels.integrate_strands(
+            self.theta, self.phi, self.theta_prev, self.phi_prev, self.chart, self.rest_dir,
+            self.length, self.inv_inertia, self.k_hinge, p.damping, self.f_dist, self.f_end,
+            np.ascontiguousarray(R), roots, spheres, self.masks, p.collisions, self.pos,
+            self.pos_prev, h, integ, self.stats)
+        c['kernel_calls'] += 1
+        c['awake_steps'] += 1
+        c['recharts'] = int(self.stats[1])
+        c['guard_moves'] = int(self.stats[2])
+        c['turn_clamps'] = int(self.stats[4])
+        self._h_prev = h
+
+    # ----------------------------------------------------------------- outputs
+    def strand_positions(self):
+        """Return a copy of the strand vertices, (n_strands, n_vertices, 3), world frame."""
+        return self.pos.copy()
+
+    @property
+    def head_pose(self):
+        """Return the (rotation matrix, position) of the head the hair last followed."""
+        return self._R.copy(), self._p.copy()
+
+    def positions_in_head_frame(self):
+        """Return the strand vertices in the head frame."""
+        return (self.pos - self._p) @ self._R
+
+    @property
+    def min_sin_theta(self):
+        """Return the smallest sin(theta) any segment has had (distance from the poles)."""
+        return float(self.stats[3])
+
+
+def stability_problem(params, sim, dt):
+    """Return why `params` would be unstable at step dt for sim's strands, or None."""
+    mass = params.linear_density * sim.length
+    inv_i = 3.0 / (mass * sim.length ** 2)
+    k_h = params.bending_stiffness / sim.length
+    springs = 0.0
+    if params.inter_strip:
+        springs += params.neighbor_stiffness + params.wall_stiffness + params.scalp_stiffness
+    if params.collisions:
+        springs += params.collision_stiffness
+    # per-metre springs on a segment of mass lambda l, acting at its end: k l * l^2 / I
+    explicit = (0.5 * mass * params.gravity * sim.length + springs * sim.length ** 3) * inv_i
+    if params.integrator == 'explicit':
+        explicit = explicit + k_h * inv_i
+        if params.damping * dt > 2.0 * STABILITY_MARGIN:
+            return ('damping %g/s with the explicit integrator needs dt below %.2g s'
+                    % (params.damping, 2.0 * STABILITY_MARGIN / params.damping))
+    omega = float(np.sqrt(explicit.max()))
+    if omega * dt > 2.0 * STABILITY_MARGIN:
+        return ('unstable with the %s integrator at dt = %.4g s: the stiffest explicit term '
+                'has omega = %.0f rad/s, which needs dt below %.3g s'
+                % (params.integrator, dt, omega, 2.0 * STABILITY_MARGIN / omega))
+    return None

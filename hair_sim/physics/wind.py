@@ -1,0 +1,48 @@
+"""Wind: a mean velocity plus deterministic, seeded turbulence (a sum of travelling modes)."""
+
+import numpy as np
+
+N_MODES = 8
+
+
+class Wind:
+    """Mean wind (m/s, world frame) and turbulence modes drawn from a seed."""
+
+    def __init__(self):
+        self.set((0.0, 0.0, 0.0), 0.0, 0)
+
+    def set(self, velocity, turbulence=0.0, seed=0):
+        """Set the mean velocity, turbulence intensity (>= 0) and seed of the gusts."""
+        v = np.array(velocity, dtype=np.float64).reshape(3)
+        turbulence = float(turbulence)
+        if not (np.all(np.isfinite(v)) and np.isfinite(turbulence)) or turbulence < 0:
+            raise ValueError('wind needs a finite velocity and a finite turbulence >= 0')
+        self.velocity = v
+        self.turbulence = turbulence
+        self.seed = int(seed) & 0xFFFFFFFF
+        rng = np.random.default_rng(self.seed)
+        d = rng.normal(size=(N_MODES, 3))
+        self.mode_dir = d / np.linalg.norm(d, axis=1, keepdims=True)
+        k = rng.normal(size=(N_MODES, 3))
+        wavenumber = rng.uniform(2, 12, (N_MODES, 1))               # rad/m
+        self.mode_k = k / np.linalg.norm(k, axis=1, keepdims=True) * wavenumber
+        self.mode_w = 2 * np.pi * rng.uniform(0.3, 2.5, N_MODES)
+        self.mode_phase = rng.uniform(0, 2 * np.pi, N_MODES)
+        # each mode's amplitude so that the gusts' rms per axis is turbulence * |v|
+        self.amplitude = turbulence * float(np.linalg.norm(v)) * np.sqrt(2.0 * 3.0 / N_MODES)
+
+    @property
+    def active(self):
+        """Return True when the wind exerts any force (a mean or gusts)."""
+        return bool(np.any(self.velocity != 0.0))
+
+    @property
+    def steady(self):
+        """Return True when the wind does not change in time (no gusts)."""
+        return self.amplitude == 0.0
+
+    def at(self, points, t):
+        """Return the wind velocity at points (n, 3) and time t (reference, numpy)."""
+        p = np.atleast_2d(points)
+        s = self.amplitude * np.sin(p @ self.mode_k.T - self.mode_w * t + self.mode_phase)
+        return self.velocity + s @ self.mode_dir

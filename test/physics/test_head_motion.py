@@ -1,0 +1,94 @@
+"""Stamped head poses: jitter, repeats, out-of-order and jumping stamps, teleports."""
+
+import math
+
+import numpy as np
+
+from hair_sim import DEFAULT_DT, HairSimulator
+from hair_sim.physics.scripts import quat_from_euler
+
+ID = [0.0, 0.0, 0.0, 1.0]
+
+
+def still_sim(style):
+    """Return a settled simulator whose head was placed at the origin at t = 0."""
+    sim = HairSimulator(style)
+    assert sim.set_head_pose(0.0, [0, 0, 0], ID) == 'ok'
+    while not sim.sleeping:
+        sim.step(DEFAULT_DT)
+    return sim
+
+
+def test_repeated_and_out_of_order_stamps_are_dropped(long_style):
+    """A repeated or older stamp is refused and counted; the hair does not move."""
+    sim = still_sim(long_style)
+    t = sim.time
+    assert sim.set_head_pose(t, [0, 0, 0], ID) == 'ok'
+    assert sim.set_head_pose(t, [0.3, 0, 0], ID) == 'repeated'
+    assert sim.set_head_pose(t - 0.5, [0.3, 0, 0], ID) == 'out_of_order'
+    before = sim.strand_positions()
+    for _ in range(10):
+        sim.step(DEFAULT_DT)
+    assert np.array_equal(before, sim.strand_positions())
+    assert sim.motion.counts['repeated'] == 1 and sim.motion.counts['out_of_order'] == 1
+
+
+def test_invalid_and_unnormalised_poses(long_style):
+    """NaN/inf and zero quaternions are refused; a scaled quaternion is normalised."""
+    sim = still_sim(long_style)
+    t = sim.time
+    assert sim.set_head_pose(t + 0.01, [math.nan, 0, 0], ID) == 'invalid'
+    assert sim.set_head_pose(t + 0.01, [0, 0, 0], [0, 0, 0, 0]) == 'invalid'
+    assert sim.set_head_pose(t + 0.01, [0, 0, 0], [0, 0, math.inf, 1]) == 'invalid'
+    assert sim.set_head_pose(math.nan, [0, 0, 0], ID) == 'invalid'
+    assert sim.set_head_pose(t + 0.01, [0, 0, 0], [0, 0, 0, 3.0]) == 'normalised'
+    for _ in range(10):
+        sim.step(DEFAULT_DT)
+    assert np.all(np.isfinite(sim.strand_positions()))
+    assert sim.motion.counts['invalid'] == 4
+
+
+def test_teleport_carries_the_hair_rigidly(long_style):
+    """A 10 m jump with a half turn moves the hair with the head: no swing, no NaN."""
+    sim = still_sim(long_style)
+    in_head = sim.positions_in_head_frame()
+    t = sim.time + DEFAULT_DT
+    assert sim.set_head_pose(t, [10.0, 0, 0], quat_from_euler(0, 0, math.pi)) == 'teleport'
+    sim.step(DEFAULT_DT)
+    R, p = sim.head_pose
+    np.testing.assert_allclose(p, [10.0, 0, 0])
+    np.testing.assert_allclose(sim.positions_in_head_frame(), in_head, atol=1e-3)
+    for _ in range(int(1.0 / DEFAULT_DT)):
+        sim.step(DEFAULT_DT)
+    np.testing.assert_allclose(sim.positions_in_head_frame(), in_head, atol=1e-3)
+
+
+def test_stamp_jumping_years_re_anchors_the_clock(long_style):
+    """Stamps that jump years ahead re-anchor the mapping; motion goes on normally."""
+    sim = still_sim(long_style)
+    far = 3.0e7 + sim.time
+    assert sim.set_head_pose(far, [0.0, 0.0, 0.0], ID) == 'clock_jump'
+    assert sim.set_head_pose(far + 0.1, [0.0, 0.0, 0.01], ID) == 'ok'
+    for _ in range(int(0.2 / DEFAULT_DT)):
+        sim.step(DEFAULT_DT)
+    _, p = sim.head_pose
+    np.testing.assert_allclose(p, [0, 0, 0.01])
+
+
+def test_jitter_is_smoothed(long_style):
+    """A still head with +-1 mm, +-0.5 deg tracker noise at 100 Hz barely moves the hair."""
+    sim = still_sim(long_style)
+    tips = sim.strand_positions()[:, -1].copy()
+    rng = np.random.default_rng(0)
+    t = sim.time
+    for _ in range(300):
+        t += 0.01
+        noise = rng.uniform(-0.001, 0.001, 3)
+        rot = quat_from_euler(*rng.uniform(-0.009, 0.009, 3))
+        sim.set_head_pose(t, noise, rot)
+        for _ in range(int(round(0.01 / DEFAULT_DT * 1.2))):
+            sim.step(0.01 / 2.4)
+    moved = np.linalg.norm(sim.strand_positions()[:, -1] - tips, axis=1)
+    assert np.all(np.isfinite(moved))
+    assert moved.mean() < 0.004, moved.mean()
+    assert sim.motion.counts['teleport'] == 0

@@ -1,0 +1,105 @@
+"""Event-triggered sleep (thesis 4.1), long violent runs on every style, and the poles."""
+
+import glob
+import os
+
+import numpy as np
+import pytest
+
+from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, load_head, paths
+from hair_sim.physics import stability_problem
+from hair_sim.physics.scripts import drive, violent
+
+STYLES = sorted(glob.glob(os.path.join(paths.hairstyles_dir(), '*.yaml')))
+
+
+@pytest.mark.parametrize('path', STYLES, ids=os.path.basename)
+def test_every_style_settles_and_sleeps_within_3s(path):
+    """Released from its modeled shape with the head still, the hair sleeps within 3 s."""
+    sim = HairSimulator(load_hairstyle(path))
+    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+    while not sim.sleeping and sim.time < 3.0:
+        sim.step(DEFAULT_DT)
+    assert sim.sleeping, 'still moving after 3 s'
+
+
+def test_sleeping_step_does_no_work_and_1mm_wakes(long_style):
+    """Asleep, a step integrates nothing (>= 20x less work); a 1 mm head move wakes it."""
+    sim = HairSimulator(long_style)
+    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+    while not sim.sleeping:
+        sim.step(DEFAULT_DT)
+    before = dict(sim.counters)
+    for _ in range(50):
+        assert sim.step(DEFAULT_DT) is False
+    asleep_work = sim.counters['segment_updates'] - before['segment_updates']
+    asleep_calls = sim.counters['kernel_calls'] - before['kernel_calls']
+    assert asleep_work == 0 and asleep_calls == 0
+    positions = sim.strand_positions()
+    t = sim.time + DEFAULT_DT
+    sim.set_head_pose(t, [0.001, 0.0, 0.0], [0, 0, 0, 1])
+    before = dict(sim.counters)
+    assert sim.step(DEFAULT_DT) is True and not sim.sleeping
+    awake_work = sim.counters['segment_updates'] - before['segment_updates']
+    assert awake_work == sim.length.size                 # every segment, once
+    assert awake_work >= 20 * max(asleep_work / 50, 1)
+    np.testing.assert_allclose(sim.strand_positions()[:, 0] - positions[:, 0],
+                               np.tile([0.001, 0, 0], (len(positions), 1)), atol=1e-12)
+
+
+def test_wind_and_parameter_changes_wake(long_style):
+    """A wind change or a parameter change wakes a sleeping solver on the next step."""
+    sim = HairSimulator(long_style)
+    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+    while not sim.sleeping:
+        sim.step(DEFAULT_DT)
+    sim.set_wind([1.0, 0.0, 0.0])
+    assert sim.step(DEFAULT_DT) and not sim.sleeping
+    sim.set_wind([0.0, 0.0, 0.0])
+    while not sim.sleeping:
+        sim.step(DEFAULT_DT)
+    sim.set_params(stiffness_scale=0.5)
+    assert sim.step(DEFAULT_DT) and not sim.sleeping
+    with pytest.raises(ValueError, match='damping'):
+        sim.set_params(damping=-1.0)
+    assert sim.params.damping == 12.0 and sim.params.stiffness_scale == 0.5
+
+
+@pytest.mark.parametrize('integrator', ['implicit', 'explicit'])
+@pytest.mark.parametrize('path', STYLES, ids=os.path.basename)
+def test_ten_seconds_of_violent_motion_stay_finite_and_bounded(path, integrator):
+    """10 s of violent motion at a dt the integrator is stable at: no NaN, no blow-up."""
+    style = load_hairstyle(path)
+    sim = HairSimulator(style, integrator=integrator)
+    dt = DEFAULT_DT
+    while stability_problem(sim.params, sim, dt):
+        dt /= 2
+    energy = []
+
+    def kinetic(s):
+        v = (s.pos - s.pos_prev) / dt
+        energy.append(float((v ** 2).sum()))
+
+    t = drive(sim, violent, 0.0, 10.0, dt, every=kinetic)
+    assert np.all(np.isfinite(sim.strand_positions()))
+    assert sim.counters['turn_clamps'] == 0                  # the step guard never fired
+    peak = max(energy)
+    drive(sim, lambda _t: violent(t), t, 2.0, dt)           # head stops
+    v = (sim.pos - sim.pos_prev) / dt
+    assert float((v ** 2).sum()) < 0.01 * peak               # and the energy drains
+    length = np.linalg.norm(np.diff(sim.pos, axis=1), axis=2)
+    np.testing.assert_allclose(length, sim.length, rtol=1e-9)   # lengths exact
+
+
+def test_strands_at_the_poles_stay_away_from_the_singularity():
+    """Strands straight up and straight down, shaken hard: sin(theta) stays >= 0.42."""
+    head = load_head(os.path.join(paths.heads_dir(), 'default_adult.yaml'))
+    z = np.linspace(0, 0.2, 6)[:, None]
+    up = np.array([0.0, 0.0, 0.3]) + z * [0, 0, 1]
+    down = np.array([0.0, 0.12, -0.02]) + z * [0, 0, -1]
+    sim = HairSimulator.from_strands(np.stack([up, down]), head)
+    sim.set_wind([0.0, 20.0, 5.0], turbulence=1.0, seed=1)
+    drive(sim, violent, 0.0, 4.0, DEFAULT_DT)
+    assert sim.counters['recharts'] > 0
+    assert sim.min_sin_theta >= 0.42
+    assert np.all(np.isfinite(sim.strand_positions()))
