@@ -31,8 +31,13 @@ def scalp_normal(p):
     return (p - c) / np.linalg.norm(p - c)
 
 
-def drape(root, heading, length, n_ctrl, clearance=0.012, fall=4.0, ds=0.002):
-    """Return n_ctrl control points along a hair draped from `root` towards `heading`."""
+def drape(root, heading, length, n_ctrl, clearance=0.012, fall=4.0, ds=0.002, turn=None):
+    """
+    Return n_ctrl control points along a hair draped from `root` towards `heading`.
+
+    turn: (arc length, new heading): past that arc length the hair swings to the new
+    heading (a parting's sweep); gravity takes over as the hair gets longer.
+    """
     p = snap_to_scalp(HEAD, np.array([root], dtype=float))[0]
     t = np.asarray(heading, dtype=float)
     path = [p.copy()]
@@ -41,6 +46,8 @@ def drape(root, heading, length, n_ctrl, clearance=0.012, fall=4.0, ds=0.002):
     down = np.array([0.0, 0.0, -1.0])
     while s < length:
         n = scalp_normal(p)
+        if turn is not None and s > turn[0]:
+            t = t + 0.08 * (np.asarray(turn[1], float) - t)
         w = fall * s                              # gravity wins as the hair gets longer
         t = t - np.dot(t, n) * n * (1.0 if p[2] > -0.02 else 0.0)
         t = t / np.linalg.norm(t) + w * ds * 60 * down
@@ -73,8 +80,14 @@ def on_scalp(direction):
     return snap_to_scalp(HEAD, (np.array([0.0, 0.0, 0.02]) + 0.2 * d)[None])[0]
 
 
-def crown_ring(angles_deg, length, n_ctrl, ring=0.35, crown=(-0.35, 0.0, 1.0), **kw):
-    """Control hairs on a ring around the crown, each heading away from it."""
+def crown_ring(angles_deg, length, n_ctrl, ring=0.35, crown=(-0.35, 0.0, 1.0), sweep=None,
+               front_clearance=None, **kw):
+    """
+    Return control hairs on a ring around the crown, each heading away from it.
+
+    sweep: above this azimuth (deg) the heading turns sideways, off the face.
+    front_clearance: the volume grows from `clearance` at the back to this at the front.
+    """
     c = np.asarray(crown, float)
     c /= np.linalg.norm(c)
     e1 = np.cross(c, [0.0, 1.0, 0.0])
@@ -85,7 +98,16 @@ def crown_ring(angles_deg, length, n_ctrl, ring=0.35, crown=(-0.35, 0.0, 1.0), *
     for a in np.radians(angles_deg):
         radial = np.cos(a) * e1 + np.sin(a) * e2
         root = on_scalp(c * np.cos(ring) + radial * np.sin(ring))
-        hairs.append(drape(root, radial, length, n_ctrl, **kw))
+        turn = None
+        if sweep is not None and abs(a) > np.radians(sweep):
+            # front hairs: over the top first, then swept to their side, off the face
+            f = (abs(a) - np.radians(sweep)) / (np.pi - np.radians(sweep))
+            turn = (0.1 + 0.02 * f, np.array([-0.2, -np.sign(a), 0.0]))
+        args = dict(kw)
+        if front_clearance is not None:
+            back = kw.get('clearance', 0.012)
+            args['clearance'] = back + (front_clearance - back) * (abs(a) / np.pi) ** 2
+        hairs.append(drape(root, radial, length, n_ctrl, turn=turn, **args))
     return hairs
 
 
@@ -111,7 +133,7 @@ def style(name, patches, vertices=10, rows=30, cols=3, color=(0.30, 0.19, 0.11),
             'lod': {'vertices': vertices, 'render_rows': rows, 'render_columns': cols},
             'material': {'color': list(color),
                          'texture': {'width': 64, 'height': 256, 'streaks': 40, 'seed': seed,
-                                     'edge_fade': 0.18, 'tip_fade': 0.25}},
+                                     'edge_fade': 0.12, 'tip_fade': 0.1}},
             'patches': patches}
 
 
@@ -130,15 +152,17 @@ def shorten(long_style, factor):
     return out
 
 
+# control hair azimuths around the crown (0 = back): denser at the back, where long hair
+# hangs and most of it is
+WHORL = 179.5 * np.sign(np.linspace(-1, 1, 16)) * np.abs(np.linspace(-1, 1, 16)) ** 1.5
+
+
 def main():
     """Write the four shipped styles."""
     n = 7
     long_d = style('thesis_long', [
-        patch('crown', crown_ring(np.linspace(-140, 140, 12), 0.30, n), 30),
-        patch('front_left', line_hairs((0.05, 0.0, 1.0), (0.75, 0.0, 0.75), 5,
-                                       (-0.25, 1.0, 0.0), 0.28, n), 8),
-        patch('front_right', line_hairs((0.05, 0.0, 1.0), (0.75, 0.0, 0.75), 5,
-                                        (-0.25, -1.0, 0.0), 0.28, n), 8),
+        patch('crown', crown_ring(WHORL, 0.30, n, ring=0.07, sweep=110, clearance=0.019,
+                                  front_clearance=0.028), 46),
     ])
     long_style = hairstyle_from_dict(long_d, os.path.join(OUT, 'thesis_long.yaml'))
     save_hairstyle(long_style, os.path.join(OUT, 'thesis_long.yaml'))

@@ -27,7 +27,7 @@ DEFAULT_ROOT_TOLERANCE = 0.005      # m: control hair roots must be this close t
 DEFAULT_MATERIAL = {
     'color': [0.30, 0.19, 0.11],     # dark brown, linear RGB
     'texture': {'width': 64, 'height': 256, 'streaks': 40, 'seed': 1,
-                'edge_fade': 0.18, 'tip_fade': 0.25},
+                'edge_fade': 0.12, 'tip_fade': 0.1},
 }
 
 

@@ -27,7 +27,7 @@ RANGES = {
     'scalp_stiffness': (0.0, 100.0),
     'scalp_spring_reach': (0.0, 0.2),
     'max_wind_speed': (0.0, 100.0),
-    'sleep_speed': (0.0, 1.0),
+    'sleep_tolerance': (0.0, 0.01),
     'sleep_delay': (0.0, 10.0),
     'max_head_speed': (0.1, 1000.0),
     'max_head_angular_speed': (0.1, 1000.0),
@@ -56,6 +56,9 @@ class PhysicsParams:
     # hinge frequency: hair swings a few times and settles within about 1 s.
     damping: float = 12.0
     gravity: float = 9.81               # m/s^2, along -z of the world frame
+    # Turn the hinges' rest directions so the modeled style is the equilibrium under
+    # gravity with the head upright (styled hair holds its shape); off: it sags first.
+    gravity_compensation: bool = True
     # Wind drag on a segment: 0.5 * rho_air * Cd * width * l * |v_perp| v_perp. Cd ~1.2 for
     # a cylinder at the Reynolds numbers of hair; width is the bundle's effective width.
     drag_coefficient: float = 1.2
@@ -85,10 +88,10 @@ class PhysicsParams:
     max_head_angular_speed: float = 40.0  # rad/s
     max_head_acceleration: float = 300.0  # m/s^2 (about 30 g)
     motion_smoothing: float = 0.02      # s, low-pass time constant of head velocity
-    # Event-triggered animation (thesis 4.1): sleep when every vertex moves slower than
-    # sleep_speed (m/s) about its segment's start for sleep_delay seconds, inputs steady.
-    sleep_speed: float = 0.002
-    sleep_delay: float = 0.25
+    # Event-triggered animation (thesis 4.1): sleep when, with steady inputs, no vertex has
+    # moved more than sleep_tolerance (m) for sleep_delay seconds.
+    sleep_tolerance: float = 0.0005
+    sleep_delay: float = 0.3
 
     def validate(self):
         """Raise ValueError naming the first parameter that is out of range or mistyped."""

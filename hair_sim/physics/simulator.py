@@ -72,7 +72,7 @@ class HairSimulator:
         self.rest = rest
         self.head = head
         self.root_head = np.ascontiguousarray(rest[:, 0])
-        self.rest_dir = np.ascontiguousarray(seg / length[..., None])
+        self.modeled_dir = seg / length[..., None]
         self.length = np.ascontiguousarray(length)
         self.reach = length.sum(axis=1)
         self.spheres_head = np.ascontiguousarray(self.head.collision)
@@ -105,16 +105,39 @@ class HairSimulator:
         self._place_at_rest()
 
     def _update_material(self):
-        """Recompute per-segment mass, inertia and hinge stiffness from the parameters."""
+        """Recompute per-segment mass, inertia, hinge stiffness and rest directions."""
         p = self.params
         self.mass = p.linear_density * self.length
         self.inv_inertia = 3.0 / (self.mass * self.length ** 2)       # rod about its end
         self.k_hinge = p.bending_stiffness / self.length              # cantilever, eq. 3
         self.gravity = np.array([0.0, 0.0, -p.gravity])
+        self.rest_dir = np.ascontiguousarray(self._compensated_rest())
+
+    def _compensated_rest(self):
+        """
+        Return rest directions (head frame) whose equilibrium under gravity is the model.
+
+        A styled hairstyle holds its shape: with gravity_compensation each hinge's rest
+        direction (eq. 3) is turned against the gravity moment (eq. 4) it carries with the
+        head upright, by -tau / k, so the modeled strands are the resting state. Turns are
+        capped at 0.5 rad (hair too soft to hold such a style simply sags).
+        """
+        d = self.modeled_dir
+        if not self.params.gravity_compensation:
+            return d.copy()
+        force = self.mass[..., None] * np.array([0.0, 0.0, -self.params.gravity])
+        tau = 0.5 * self.length[..., None] * np.cross(d, force)       # about the start
+        rot = -tau / self.k_hinge[..., None]
+        angle = np.linalg.norm(rot, axis=-1, keepdims=True)
+        capped = np.minimum(angle, 0.5)
+        axis = rot / np.maximum(angle, 1e-300)
+        c, s = np.cos(capped), np.sin(capped)
+        out = d * c + np.cross(axis, d) * s + axis * (axis * d).sum(-1, keepdims=True) * (1 - c)
+        return out / np.linalg.norm(out, axis=-1, keepdims=True)
 
     def _place_at_rest(self):
         """Put every strand at its rest shape under the current head pose, at rest."""
-        world_dir = np.ascontiguousarray(self.rest_dir @ self._R.T)
+        world_dir = np.ascontiguousarray(self.modeled_dir @ self._R.T)
         kernels.init_charts(world_dir, self.chart, self.theta, self.phi)
         self.theta_prev = self.theta.copy()
         self.phi_prev = self.phi.copy()
@@ -127,6 +150,7 @@ class HairSimulator:
         self._alpha = np.zeros(3)
         self._h_prev = DEFAULT_DT
         self._quiet = 0.0
+        self._quiet_ref = None
         self.sleeping = False
         self._wake_reason = 'start'
         self.stats[3] = 1.0
@@ -177,6 +201,7 @@ class HairSimulator:
             self.counters['wakes'] += 1
         self.sleeping = False
         self._quiet = 0.0
+        self._quiet_ref = None
         self._wake_reason = reason
 
     # ----------------------------------------------------------------- stepping
@@ -244,9 +269,12 @@ class HairSimulator:
             self.last_step_time = _time.perf_counter() - t0
             return False
         self._simulate(t, h)
-        rate = self.stats[0]
+        # Settled: with steady inputs, no vertex has left a sleep_tolerance ball around where
+        # it was when the quiet window began, for sleep_delay seconds. (A displacement
+        # window, not a speed: contact can make a vertex tremble by the guard's 0.2 mm.)
         inputs_steady = self.wind.steady and self._head_still()
-        if rate < self.params.sleep_speed and inputs_steady:
+        if inputs_steady and self._quiet_ref is not None and \
+                np.abs(self.pos - self._quiet_ref).max() < self.params.sleep_tolerance:
             self._quiet += h
             if self._quiet >= self.params.sleep_delay:
                 self.sleeping = True
@@ -255,6 +283,7 @@ class HairSimulator:
                 self.pos_prev[:] = self.pos
         else:
             self._quiet = 0.0
+            self._quiet_ref = self.pos.copy() if inputs_steady else None
         self.time = t
         self.last_step_time = _time.perf_counter() - t0
         return True
@@ -308,6 +337,20 @@ class HairSimulator:
         self._h_prev = h
 
     # ----------------------------------------------------------------- outputs
+    def renderer(self, point_centre=False):
+        """Return the HairRenderer of the current style (built once per style)."""
+        from hair_sim.render import HairRenderer
+        key = (id(self.style), point_centre)
+        if getattr(self, '_renderer_key', None) != key:
+            self._renderer = HairRenderer(self.style, self.strips, self.rest, self.head,
+                                          point_centre=point_centre)
+            self._renderer_key = key
+        return self._renderer
+
+    def mesh(self, viewpoint=None, point_centre=False):
+        """Return the U-shape HairMesh of the current state (world frame, thesis 3)."""
+        return self.renderer(point_centre).mesh(self.pos, self._R, self._p, viewpoint)
+
     def strand_positions(self):
         """Return a copy of the strand vertices, (n_strands, n_vertices, 3), world frame."""
         return self.pos.copy()

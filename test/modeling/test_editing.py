@@ -53,7 +53,7 @@ def test_edit_rejects_bad_indices_and_values(style):
 
 def test_edit_save_load_round_trip_is_exact(style, tmp_path):
     """Edit -> save -> load gives bit-identical control points and strips."""
-    edited = style.with_control_point(1, 2, 3, [0.0123456789012345, 0.0987654321, 0.05])
+    edited = style.with_control_point(0, 2, 3, [0.0123456789012345, 0.0987654321, 0.05])
     path = str(tmp_path / 'edited.yaml')
     save_hairstyle(edited, path)
     back = load_hairstyle(path)

@@ -10,7 +10,10 @@ import yaml
 from hair_sim import paths
 from hair_sim.modeling import HairstyleError, load_hairstyle, load_head
 
-BASE = yaml.safe_load(open(paths.shipped_style('thesis_short')))
+BASE = yaml.safe_load(open(paths.shipped_style('bob_fringe')))
+P0, P1 = (repr(p['name']) for p in BASE['patches'][:2])     # patch names as messages quote
+N_HAIRS = len(BASE['patches'][0]['control_hairs'])
+N_POINTS = len(BASE['patches'][0]['control_hairs'][0])
 
 
 def write(tmp_path, data, name='style.yaml'):
@@ -48,13 +51,15 @@ def expect(tmp_path, data, *fragments):
 
 def test_base_style_loads(tmp_path):
     """The unmodified copy loads (so every failure below is the mutation's)."""
-    assert load_hairstyle(write(tmp_path, BASE)).n_strips == 46
+    assert load_hairstyle(write(tmp_path, BASE)).n_strips == sum(
+        p['strips'] for p in BASE['patches'])
 
 
 def test_mismatched_control_point_counts(tmp_path):
     """Control hairs of a patch must have the same number of control points."""
     d = broken(lambda d: d['patches'][1]['control_hairs'][2].pop())
-    expect(tmp_path, d, "patch 'front_left'", 'control hair 2 has 6 control points',
+    n = len(BASE['patches'][1]['control_hairs'][0])
+    expect(tmp_path, d, 'patch %s' % P1, 'control hair 2 has %d control points' % (n - 1),
            'same number')
 
 
@@ -62,20 +67,20 @@ def test_one_control_hair(tmp_path):
     """A patch needs at least two control hairs."""
     d = broken(lambda d: d['patches'][0].update(
         control_hairs=d['patches'][0]['control_hairs'][:1]))
-    expect(tmp_path, d, "patch 'crown'", 'at least 2')
+    expect(tmp_path, d, 'patch %s' % P0, 'at least 2')
 
 
 def test_nan_coordinate(tmp_path):
     """Non-finite numbers are refused and located."""
     d = broken(lambda d: d['patches'][0]['control_hairs'][3][4].__setitem__(1, float('nan')))
-    expect(tmp_path, d, "patch 'crown'", 'control hair 3', 'non-finite')
+    expect(tmp_path, d, 'patch %s' % P0, 'control hair 3', 'non-finite')
 
 
 def test_root_off_the_scalp(tmp_path):
     """Roots must be within the tolerance of the scalp."""
     def lift(d):
-        d['patches'][2]['control_hairs'][1][0][2] += 0.02
-    expect(tmp_path, broken(lift), "patch 'front_right'", 'control hair 1 root',
+        d['patches'][1]['control_hairs'][1][0][2] += 0.02
+    expect(tmp_path, broken(lift), 'patch %s' % P1, 'control hair 1 root',
            'away from the scalp')
 
 
@@ -92,32 +97,36 @@ def test_degree_not_below_point_count(tmp_path):
         p = d['patches'][0]
         p['control_hairs'] = [h[:4] for h in p['control_hairs']]
         p['degree'] = [3, 4]
-    expect(tmp_path, broken(cut), "patch 'crown'", 'degree along (4)',
+    expect(tmp_path, broken(cut), 'patch %s' % P0, 'degree along (4)',
            'below the number of control points per hair (4)')
 
 
 def test_degree_across_not_below_hair_count(tmp_path):
     """The degree across must be below the number of control hairs."""
-    d = broken(lambda d: d['patches'][1].update(degree=[5, 3]))
-    expect(tmp_path, d, "patch 'front_left'", 'degree across (5)')
+    def few(d):
+        d['patches'][1]['control_hairs'] = d['patches'][1]['control_hairs'][:4]
+        d['patches'][1]['degree'] = [4, 3]
+    expect(tmp_path, broken(few), 'patch %s' % P1, 'degree across (4)')
 
 
 def test_too_few_strips(tmp_path):
     """Strips give the columns; they cannot be fewer than the control hairs."""
     d = broken(lambda d: d['patches'][0].update(strips=3))
-    expect(tmp_path, d, "patch 'crown'", 'fewer than its 12 control hairs')
+    expect(tmp_path, d, 'patch %s' % P0, 'fewer than its %d control hairs' % N_HAIRS)
 
 
 def test_bad_knots_and_weights(tmp_path):
     """Knot vectors must fit and be clamped; weights must be positive and shaped."""
+    n_knots = N_POINTS + 3 + 1
     d = broken(lambda d: d['patches'][0].update(knots_along=[0, 0, 0, 0, 1, 1, 1, 1]))
-    expect(tmp_path, d, 'knots_along', 'needs 11 knots')
-    d = broken(lambda d: d['patches'][0].update(
-        knots_along=[0, 0, 0, 0.5, 0.2, 0.7, 1, 1, 1, 1, 1]))
+    expect(tmp_path, d, 'knots_along', 'needs %d knots' % n_knots)
+    bad = [0.0] * 4 + [0.5, 0.2] + [0.7] * (n_knots - 10) + [1.0] * 4
+    d = broken(lambda d: d['patches'][0].update(knots_along=bad))
     expect(tmp_path, d, 'knots_along', 'not non-decreasing')
-    d = broken(lambda d: d['patches'][0].update(weights=[[1.0] * 7] * 11))
+    d = broken(lambda d: d['patches'][0].update(weights=[[1.0] * N_POINTS] * (N_HAIRS - 1)))
     expect(tmp_path, d, 'weights must have one value per control point')
-    d = broken(lambda d: d['patches'][0].update(weights=[[1.0] * 7] * 11 + [[0.0] * 7]))
+    d = broken(lambda d: d['patches'][0].update(
+        weights=[[1.0] * N_POINTS] * (N_HAIRS - 1) + [[0.0] * N_POINTS]))
     expect(tmp_path, d, 'weights must be positive')
 
 
@@ -146,7 +155,7 @@ def test_schema_errors(tmp_path):
 def test_malformed_yaml_and_wrong_top_level(tmp_path):
     """Malformed, truncated, non-mapping and oversized files give one clear error each."""
     expect(tmp_path, 'patches: [ {name: a, control_hairs: [[[0, 0', 'not valid YAML')
-    text = open(paths.shipped_style('thesis_short')).read()
+    text = open(paths.shipped_style('bob_fringe')).read()
     expect(tmp_path, text[:len(text) // 2].rsplit('\n', 3)[0] + '\n  - [0.1', 'hairstyle file')
     expect(tmp_path, '- just\n- a list\n', 'top level must be a mapping')
     expect(tmp_path, '!!python/object/apply:os.system ["true"]', 'not valid YAML')

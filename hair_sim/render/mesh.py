@@ -1,0 +1,138 @@
+"""HairMesh, the one input of every sink, and HairRenderer, which builds it each frame."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hair_sim.render import culling, ushape
+from hair_sim.render.tessellate import make_lod
+from hair_sim.render.texture import texture_png
+
+DELTA = 5e-4            # m: bisection threshold of thesis 3.2
+MAX_DISTANCE = 0.04     # m: a projection farther than this from its vertex is "too far"
+FIX_LENGTH = 0.006      # m: C, the length of a fixed-up projection AA' (fig. 3.4 B, D)
+CULL_LEAF = 0.002       # m: smallest piece the culler splits a strip's edge and wall into
+
+
+@dataclass
+class HairMesh:
+    """
+    A triangle mesh of the drawn hair.
+
+    vertices (N, 3) float32, uvs (N, 2) float32 (u across a strip, v root 0 -> tip 1),
+    indices (M, 3) uint32 counter-clockwise seen from outside, strip_offsets (S + 1,)
+    triangle index where each drawn strip starts, strip_ids (S,) which strip of the style
+    each is, texture_png (RGBA PNG bytes) and texture_id naming it, frame_id of the vertices.
+    Each drawn strip has (columns + 4) * rows vertices and 2 (columns + 1)(rows - 1)
+    triangles: its grid and its two walls (thesis 3.1).
+    """
+
+    vertices: np.ndarray
+    uvs: np.ndarray
+    indices: np.ndarray
+    strip_offsets: np.ndarray
+    strip_ids: np.ndarray
+    texture_png: bytes
+    texture_id: str
+    frame_id: str = 'world'
+    verts_per_strip: int = 0
+    tris_per_strip: int = 0
+    flags: np.ndarray = None        # (S, 2, rows): 0 projected, 1 too far, 2 reverse volume
+
+    @property
+    def n_strips(self):
+        """Return the number of drawn strips."""
+        return len(self.strip_ids)
+
+
+class HairRenderer:
+    """Tessellate (Oslo), warp into U-shapes (3.2), texture and cull the strips of a style."""
+
+    def __init__(self, style, strips, rest, head, point_centre=False, delta=DELTA,
+                 max_distance=MAX_DISTANCE, fix_length=FIX_LENGTH):
+        self.lod = make_lod(strips.n_vertices, style.render_rows, style.render_columns)
+        self.strip_strands = np.ascontiguousarray(strips.strip_strands)
+        self.n_strips = strips.n_strips
+        self.head = head
+        self.point_centre = point_centre
+        self.delta, self.max_distance, self.fix_length = delta, max_distance, fix_length
+        self.texture_id, self.texture = texture_png(style.material)
+        # sigma: +1 where the strip's AB x AC normal faces the scalp at rest (thesis 3.1)
+        mid = rest.shape[1] // 2
+        a = rest[self.strip_strands[:, 0], mid]
+        b = rest[self.strip_strands[:, 1], mid]
+        c = rest[self.strip_strands[:, 0], min(mid + 1, rest.shape[1] - 1)]
+        n = np.cross(b - a, c - a)
+        towards = head.nearest_on_scalp(a) - a
+        self.sigma = np.where((n * towards).sum(axis=1) >= 0, 1.0, -1.0)
+        tri = self.lod.triangles.astype(np.int64)
+        self._tri_out = tri                               # outward when sigma = -1
+        self._tri_flip = tri[:, [0, 2, 1]]
+        self._all = np.arange(self.n_strips)
+        self._cache_all = None
+        self._grid = np.zeros((self.n_strips, self.lod.columns, self.lod.rows, 3))
+        self._out = np.zeros((self.n_strips, self.lod.verts_per_strip, 3))
+        self._flags = np.zeros((self.n_strips, 2, self.lod.rows), dtype=np.int64)
+        self._vis = np.zeros(self.n_strips, dtype=np.int64)
+        self._bottoms = np.zeros_like(rest)
+
+    def _world(self, R, p):
+        scalp = self.head.scalp.copy()
+        scalp[:, :3] = scalp[:, :3] @ R.T + p
+        occ = self.head.collision.copy()
+        occ[:, :3] = occ[:, :3] @ R.T + p
+        occ[:, 3] -= 1e-4                      # a shade smaller: culling stays conservative
+        centre = self.head.projection_sphere[:3] @ R.T + p
+        rs = 0.0 if self.point_centre else float(self.head.projection_sphere[3])
+        return np.ascontiguousarray(scalp), np.ascontiguousarray(occ), centre, rs
+
+    def visible(self, pos, R, p, viewpoint):
+        """Return the indices of the strips that may be seen from `viewpoint` (world)."""
+        scalp, occ, centre, rs = self._world(R, p)
+        ushape.wall_bottoms(pos, self.strip_strands, self.sigma, scalp, centre, rs,
+                            self.delta, self.max_distance, self.fix_length, self._bottoms)
+        culling.visible_strips(pos, self.strip_strands, self.sigma, self._bottoms,
+                               np.asarray(viewpoint, dtype=np.float64), occ, CULL_LEAF,
+                               self._vis)
+        return np.flatnonzero(self._vis)
+
+    def mesh(self, pos, R, p, viewpoint=None, frame_id='world', walls=True):
+        """
+        Build the HairMesh of strand positions `pos` (world) under head pose (R, p).
+
+        walls=False leaves out the two projected meshes: plain strips (thesis fig. 3.8a).
+        """
+        strips = self._all if viewpoint is None else self.visible(pos, R, p, viewpoint)
+        k = len(strips)
+        scalp, _, centre, rs = self._world(R, p)
+        grid = self._grid[:k]
+        out = self._out[:k]
+        flags = self._flags[:k]
+        sel = np.ascontiguousarray(strips, dtype=np.int64)
+        ushape.tessellate_strips(pos, self.strip_strands, sel, self.lod.along, self.lod.across,
+                                 grid)
+        ushape.ushape(grid, self.sigma, sel, scalp, centre, rs, self.delta, self.max_distance,
+                      self.fix_length, out, flags)
+        nv, nt = self.lod.verts_per_strip, self.lod.tris_per_strip
+        if viewpoint is None and self._cache_all is not None:
+            indices, uvs, offsets = self._cache_all
+        else:
+            flip = self.sigma[sel] > 0
+            local = np.where(flip[:, None, None], self._tri_flip[None], self._tri_out[None])
+            indices = (local + (np.arange(k) * nv)[:, None, None]).reshape(-1, 3)
+            indices = indices.astype(np.uint32)
+            uvs = np.tile(self.lod.uvs, (k, 1))
+            offsets = (np.arange(k + 1) * nt).astype(np.uint32)
+            if viewpoint is None:
+                self._cache_all = (indices, uvs, offsets)
+        self.last_f64 = out                 # float64 U-shape vertices of this frame (k, nv, 3)
+        if not walls:
+            keep = (np.arange(nt) < 2 * (self.lod.columns - 1) * (self.lod.rows - 1))
+            indices = indices.reshape(k, nt, 3)[:, keep].reshape(-1, 3)
+            offsets = (np.arange(k + 1) * int(keep.sum())).astype(np.uint32)
+            nt = int(keep.sum())
+        return HairMesh(vertices=out.reshape(-1, 3).astype(np.float32), uvs=uvs,
+                        indices=indices, strip_offsets=offsets,
+                        strip_ids=sel.astype(np.uint32), texture_png=self.texture,
+                        texture_id=self.texture_id, frame_id=frame_id,
+                        verts_per_strip=nv, tris_per_strip=nt, flags=flags.copy())

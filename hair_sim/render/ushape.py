@@ -1,0 +1,223 @@
+"""
+U-shape strips (thesis 3.1, 3.2): each drawn strip plus its two projections onto the scalp.
+
+For every row of a tessellated strip the two edge vertices form the pair (A, B) of fig. 3.6.
+A' is the point of the projection-centre sphere S, in the plane of A, B and S's centre O,
+where the line from A touches S, on the side away from B (angle(AB, AO) < angle(AB, AA')).
+Bisection between A and A' (threshold delta) finds the projection of A on the scalp, the
+boundary of the union of the scalp spheres. A projection too far from A, or on the wrong
+side of the strip (reverse volume, fig. 3.7: the angle between AA' and the strip normal
+towards the scalp over 90 degrees), is replaced by A' = A + V, V along the strip normal,
+towards the scalp side, of length C (fig. 3.4 B, D). Nothing of this is stored between
+frames.
+"""
+
+from math import sqrt
+
+from numba import njit
+
+
+@njit(cache=True)
+def _inside_scalp(x, y, z, scalp):
+    for k in range(scalp.shape[0]):
+        dx, dy, dz = x - scalp[k, 0], y - scalp[k, 1], z - scalp[k, 2]
+        if dx * dx + dy * dy + dz * dz < scalp[k, 3] * scalp[k, 3]:
+            return True
+    return False
+
+
+@njit(cache=True)
+def tangent_point(ax, ay, az, bx, by, bz, o, rs):
+    """
+    Return A' on sphere S (centre o, radius rs) for the pair (A, B), fig. 3.6.
+
+    With rs = 0 (a point as projection centre, fig. 3.3A) A' is O itself.
+    """
+    ux, uy, uz = o[0] - ax, o[1] - ay, o[2] - az
+    d = sqrt(ux * ux + uy * uy + uz * uz)
+    if rs <= 0.0 or d <= rs:
+        return o[0], o[1], o[2]
+    ux /= d
+    uy /= d
+    uz /= d
+    # y axis of the local frame: in the plane of A, B, O, perpendicular to AO, towards B
+    wx, wy, wz = bx - ax, by - ay, bz - az
+    dot = wx * ux + wy * uy + wz * uz
+    yx, yy, yz = wx - dot * ux, wy - dot * uy, wz - dot * uz
+    n = sqrt(yx * yx + yy * yy + yz * yz)
+    if n < 1e-15:
+        if abs(ux) < 0.9:
+            yx, yy, yz = 0.0, -uz, uy
+        else:
+            yx, yy, yz = uz, 0.0, -ux
+        n = sqrt(yx * yx + yy * yy + yz * yz)
+    yx /= n
+    yy /= n
+    yz /= n
+    # AA' makes angle beta = asin(rs / d) with AO, turned away from B (-y)
+    sb = rs / d
+    cb = sqrt(1.0 - sb * sb)
+    t = sqrt(d * d - rs * rs)                     # tangent length |AA'|
+    return (ax + t * (cb * ux - sb * yx), ay + t * (cb * uy - sb * yy),
+            az + t * (cb * uz - sb * yz))
+
+
+@njit(cache=True)
+def _inside_scalp_by(x, y, z, scalp, depth):
+    for k in range(scalp.shape[0]):
+        dx, dy, dz = x - scalp[k, 0], y - scalp[k, 1], z - scalp[k, 2]
+        r = scalp[k, 3] - depth
+        if dx * dx + dy * dy + dz * dz < r * r:
+            return True
+    return False
+
+
+@njit(cache=True)
+def project_to_scalp(ax, ay, az, px, py, pz, scalp, delta):
+    """
+    Bisect from A (outside) towards A' (inside) until |XY| <= delta (thesis 3.2).
+
+    Returns the midpoint of the final X and Y, within delta / 2 of the boundary like X, so
+    that a vertex already on the scalp (a root) still gets a wall of non-zero depth.
+    A vertex deeper than delta inside the scalp is its own projection.
+    """
+    if _inside_scalp_by(ax, ay, az, scalp, delta):
+        return ax, ay, az
+    xx, xy, xz = ax, ay, az
+    yx, yy, yz = px, py, pz
+    while (xx - yx) ** 2 + (xy - yy) ** 2 + (xz - yz) ** 2 > delta * delta:
+        zx, zy, zz = 0.5 * (xx + yx), 0.5 * (xy + yy), 0.5 * (xz + yz)
+        if _inside_scalp(zx, zy, zz, scalp):
+            yx, yy, yz = zx, zy, zz
+        else:
+            xx, xy, xz = zx, zy, zz
+    return 0.5 * (xx + yx), 0.5 * (xy + yy), 0.5 * (xz + yz)
+
+
+@njit(cache=True)
+def tessellate_strips(pos, strip_strands, strips, along, across, out_grid):
+    """Refine the simulated net of each listed strip to its (columns, rows, 3) grid."""
+    R, V = along.shape
+    C = across.shape[0]
+    for k in range(strips.shape[0]):
+        s = strips[k]
+        a, b = strip_strands[s, 0], strip_strands[s, 1]
+        for r in range(R):
+            ex0 = ey0 = ez0 = ex1 = ey1 = ez1 = 0.0
+            for v in range(V):
+                w = along[r, v]
+                if w != 0.0:
+                    ex0 += w * pos[a, v, 0]
+                    ey0 += w * pos[a, v, 1]
+                    ez0 += w * pos[a, v, 2]
+                    ex1 += w * pos[b, v, 0]
+                    ey1 += w * pos[b, v, 1]
+                    ez1 += w * pos[b, v, 2]
+            for c in range(C):
+                w0, w1 = across[c, 0], across[c, 1]
+                out_grid[k, c, r, 0] = w0 * ex0 + w1 * ex1
+                out_grid[k, c, r, 1] = w0 * ey0 + w1 * ey1
+                out_grid[k, c, r, 2] = w0 * ez0 + w1 * ez1
+
+
+@njit(cache=True)
+def _strip_normal(grid, k, r, C, R):
+    """Return the unit normal AB x AC of row r (A left edge, B right edge, C down the edge)."""
+    bx = grid[k, C - 1, r, 0] - grid[k, 0, r, 0]
+    by = grid[k, C - 1, r, 1] - grid[k, 0, r, 1]
+    bz = grid[k, C - 1, r, 2] - grid[k, 0, r, 2]
+    r0 = max(r - 1, 0)
+    r1 = min(r + 1, R - 1)
+    e = C - 1
+    cx = 0.5 * (grid[k, 0, r1, 0] + grid[k, e, r1, 0] - grid[k, 0, r0, 0] - grid[k, e, r0, 0])
+    cy = 0.5 * (grid[k, 0, r1, 1] + grid[k, e, r1, 1] - grid[k, 0, r0, 1] - grid[k, e, r0, 1])
+    cz = 0.5 * (grid[k, 0, r1, 2] + grid[k, e, r1, 2] - grid[k, 0, r0, 2] - grid[k, e, r0, 2])
+    nx, ny, nz = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx
+    n = sqrt(nx * nx + ny * ny + nz * nz)
+    if n < 1e-18:
+        return 0.0, 0.0, 0.0
+    return nx / n, ny / n, nz / n
+
+
+@njit(cache=True)
+def ushape(grid, sigma, strips, scalp, centre, rs, delta, max_dist, fix_len, out, flags):
+    """
+    Write the U-shape vertices of each strip into out (k, verts_per_strip, 3).
+
+    Layout per strip: the grid column by column, then the left wall (edge column, its
+    projections), then the right wall. sigma[s] = +1 when the strip's AB x AC normal faces
+    the scalp side (fixed at rest), -1 otherwise. flags[k, side, r] = 0 projected on the
+    scalp, 1 fixed because too far, 2 fixed because of reverse volume.
+    """
+    K, C, R = grid.shape[0], grid.shape[1], grid.shape[2]
+    for k in range(K):
+        sg = sigma[strips[k]]
+        i = 0
+        for c in range(C):
+            for r in range(R):
+                out[k, i, 0] = grid[k, c, r, 0]
+                out[k, i, 1] = grid[k, c, r, 1]
+                out[k, i, 2] = grid[k, c, r, 2]
+                i += 1
+        for side in range(2):
+            ca = 0 if side == 0 else C - 1
+            cb = C - 1 if side == 0 else 0
+            for r in range(R):
+                ax, ay, az = grid[k, ca, r, 0], grid[k, ca, r, 1], grid[k, ca, r, 2]
+                bx, by, bz = grid[k, cb, r, 0], grid[k, cb, r, 1], grid[k, cb, r, 2]
+                tx, ty, tz = tangent_point(ax, ay, az, bx, by, bz, centre, rs)
+                px, py, pz = project_to_scalp(ax, ay, az, tx, ty, tz, scalp, delta)
+                nx, ny, nz = _strip_normal(grid, k, r, C, R)
+                nx, ny, nz = sg * nx, sg * ny, sg * nz          # towards the scalp side
+                vx, vy, vz = px - ax, py - ay, pz - az
+                dist = sqrt(vx * vx + vy * vy + vz * vz)
+                flag = 0
+                if dist > max_dist:
+                    flag = 1                                    # too far (fig. 3.4A)
+                elif vx * nx + vy * ny + vz * nz < 0.0:
+                    flag = 2                                    # reverse volume (fig. 3.7)
+                if flag != 0:
+                    px, py, pz = ax + fix_len * nx, ay + fix_len * ny, az + fix_len * nz
+                flags[k, side, r] = flag
+                base = C * R + side * 2 * R
+                out[k, base + r, 0] = ax
+                out[k, base + r, 1] = ay
+                out[k, base + r, 2] = az
+                out[k, base + R + r, 0] = px
+                out[k, base + R + r, 1] = py
+                out[k, base + R + r, 2] = pz
+
+
+@njit(cache=True)
+def wall_bottoms(pos, strip_strands, sigma, scalp, centre, rs, delta, max_dist, fix_len, out):
+    """Write where the U-shape wall below every simulated vertex ends, fix-ups included."""
+    V = pos.shape[1]
+    for s in range(strip_strands.shape[0]):
+        for side in range(2):
+            a = strip_strands[s, side]
+            b = strip_strands[s, 1 - side]
+            for j in range(V):
+                ax, ay, az = pos[a, j, 0], pos[a, j, 1], pos[a, j, 2]
+                tx, ty, tz = tangent_point(ax, ay, az, pos[b, j, 0], pos[b, j, 1],
+                                           pos[b, j, 2], centre, rs)
+                px, py, pz = project_to_scalp(ax, ay, az, tx, ty, tz, scalp, delta)
+                # the strip normal AB x AC with A the left edge, as ushape() takes it
+                l0, l1 = strip_strands[s, 0], strip_strands[s, 1]
+                j0, j1 = max(j - 1, 0), min(j + 1, V - 1)
+                bx = pos[l1, j, 0] - pos[l0, j, 0]
+                by = pos[l1, j, 1] - pos[l0, j, 1]
+                bz = pos[l1, j, 2] - pos[l0, j, 2]
+                cx = 0.5 * (pos[l0, j1, 0] + pos[l1, j1, 0] - pos[l0, j0, 0] - pos[l1, j0, 0])
+                cy = 0.5 * (pos[l0, j1, 1] + pos[l1, j1, 1] - pos[l0, j0, 1] - pos[l1, j0, 1])
+                cz = 0.5 * (pos[l0, j1, 2] + pos[l1, j1, 2] - pos[l0, j0, 2] - pos[l1, j0, 2])
+                nx, ny, nz = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx
+                nn = sqrt(nx * nx + ny * ny + nz * nz)
+                if nn > 1e-18:
+                    nx, ny, nz = sigma[s] * nx / nn, sigma[s] * ny / nn, sigma[s] * nz / nn
+                vx, vy, vz = px - ax, py - ay, pz - az
+                if vx * vx + vy * vy + vz * vz > max_dist * max_dist or \
+                        vx * nx + vy * ny + vz * nz < 0.0:
+                    px, py, pz = ax + fix_len * nx, ay + fix_len * ny, az + fix_len * nz
+                out[a, j, 0] = px
+                out[a, j, 1] = py
+                out[a, j, 2] = pz
