@@ -9,7 +9,7 @@ STAMP_DEPS := $(VENV)/.stamp-deps
 STAMP_MSGS := $(VENV)/.stamp-msgs
 STAMP_PKG := $(VENV)/.stamp-pkg
 
-.PHONY: setup test lint clean
+.PHONY: setup test demo lint clean
 
 setup: $(STAMP_DEPS) $(STAMP_MSGS) $(STAMP_PKG)
 
@@ -34,6 +34,10 @@ $(STAMP_PKG): $(STAMP_DEPS) setup.py setup.cfg package.xml resource/hair_sim too
 
 test: setup
 	$(PY) -m pytest test
+
+# The node with the sample style, a scripted head and wind, in meshcat: prints the URL.
+demo: setup
+	$(VENV)/bin/hair_sim_demo $(DEMO_ARGS)
 
 lint: setup
 	$(PY) -m pytest test/test_flake8.py test/test_pep257.py

@@ -26,6 +26,8 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
+            'hair_sim_node = hair_sim.ros.node:main',
+            'hair_sim_demo = hair_sim.ros.demo:main',
         ],
     },
 )

@@ -14,6 +14,7 @@ sys.path.insert(0, ROOT)
 from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, paths  # noqa: E402
 from hair_sim.modeling.preview import render_png  # noqa: E402
 from hair_sim.render.preview import views_png  # noqa: E402
+from hair_sim.sinks.meshcat_sink import screenshot  # noqa: E402
 
 
 def main():
@@ -28,6 +29,27 @@ def main():
     while not sim.sleeping:
         sim.step(DEFAULT_DT)
     print(views_png(sim, os.path.join(doc, 'ushape_views.png')))
+    print(meshcat_png(os.path.join(doc, 'meshcat.png')))
+
+
+def meshcat_png(path):
+    """Run the demo, screenshot its meshcat page with headless Chromium, stop the demo."""
+    import subprocess
+    import time
+    demo = subprocess.Popen([os.path.join(os.path.dirname(sys.executable), 'hair_sim_demo'),
+                             '--duration', '60'], stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, text=True)
+    try:
+        url = None
+        for line in demo.stdout:
+            if line.startswith('URL '):
+                url = line.split()[1]
+                break
+        time.sleep(4.0)
+        return screenshot(url, path)
+    finally:
+        demo.terminate()
+        demo.wait(timeout=20)
 
 
 if __name__ == '__main__':

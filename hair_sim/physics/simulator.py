@@ -51,6 +51,7 @@ class HairSimulator:
                          'wall_springs': 0, 'recharts': 0, 'guard_moves': 0, 'wakes': 0,
                          'turn_clamps': 0}
         self.last_step_time = 0.0
+        self.stability_dt = DEFAULT_DT      # the step set_params checks stability at
         self._R = np.eye(3)
         self._p = np.zeros(3)
 
@@ -183,7 +184,7 @@ class HairSimulator:
     def set_params(self, **changes):
         """Change parameters (validated, stability-checked); the old ones stay on error."""
         new = self.params.replaced(**changes)
-        reason = stability_problem(new, self, DEFAULT_DT)
+        reason = stability_problem(new, self, self.stability_dt)
         if reason:
             raise ValueError(reason)
         self.params = new

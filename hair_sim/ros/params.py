@@ -1,0 +1,44 @@
+"""Every node parameter: name, default, description and range (declared with descriptors)."""
+
+from dataclasses import fields
+
+from hair_sim.physics.params import PhysicsParams, RANGES
+
+# name: (default, description, (low, high) or None)
+NODE_PARAMETERS = {
+    'hairstyle': ('thesis_long', 'hairstyle to load: a name or a .yaml path relative to one '
+                  'of hairstyle_dirs', None),
+    'hairstyle_dirs': ([''], 'directories load/save may touch; "" is the shipped '
+                       'config/hairstyles', None),
+    'sim_rate': (240.0, 'solver steps per simulated second (Hz)', (30.0, 4000.0)),
+    'frame_rate': (60.0, 'how often the solver catches up with the clock (Hz)', (5.0, 500.0)),
+    'max_steps_per_frame': (16, 'steps at most per frame; time beyond is dropped', (1, 200)),
+    'publish_rate': (30.0, 'rate of hair_markers, hair_mesh, hair_state (Hz)', (0.5, 240.0)),
+    'world_frame': ('world', 'frame of head poses and wind', None),
+    'use_viewpoint': (False, 'cull strips that cannot be seen from viewpoint', None),
+    'viewpoint': ([0.8, 0.0, 0.0], 'eye position for culling, world frame (m)', None),
+    'publish_markers': (True, 'publish hair_markers (MarkerArray)', None),
+    'publish_mesh': (True, 'publish hair_mesh (HairMesh)', None),
+    'publish_state': (True, 'publish hair_state (HairState)', None),
+    'texture_every': (30, 'send the texture PNG in HairMesh every N messages', (1, 100000)),
+    'meshcat.enabled': (False, 'stream the hair to a meshcat viewer', None),
+    'meshcat.rate': (20.0, 'meshcat frames per second', (0.5, 120.0)),
+    'meshcat.zmq_url': ('', 'meshcat server to use; empty starts one', None),
+}
+
+
+def physics_parameters():
+    """Return {'physics.<field>': (default, description, range)} for every PhysicsParams."""
+    out = {}
+    defaults = PhysicsParams()
+    for f in fields(PhysicsParams):
+        out['physics.' + f.name] = (getattr(defaults, f.name), 'PhysicsParams.%s' % f.name,
+                                    RANGES.get(f.name))
+    return out
+
+
+def all_parameters():
+    """Return every parameter the node declares."""
+    out = dict(NODE_PARAMETERS)
+    out.update(physics_parameters())
+    return out

@@ -1,0 +1,297 @@
+"""
+meshcat sink: the head drawn once, the hair streamed as one textured mesh per frame.
+
+Everything meshcat happens on a worker thread, rate limited, fed the newest frame only:
+the simulation never waits for the browser. The client talks zmq with time-outs, so a
+missing, killed or slow server is logged and retried, never a hang.
+"""
+
+import os
+import re
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+
+SERVER_START_TIMEOUT = 20.0
+REPLY_TIMEOUT_MS = 3000
+RETRY_PERIOD = 2.0
+
+
+def _geometry_classes():
+    import meshcat.geometry as g
+
+    class UVMeshGeometry(g.Geometry):
+        """TriangularMeshGeometry with a uv attribute: a three.js BufferGeometry."""
+
+        def __init__(self, vertices, faces, uvs):
+            super().__init__()
+            self.vertices = np.asarray(vertices, dtype=np.float32)
+            self.faces = np.asarray(faces, dtype=np.uint32)
+            self.uvs = np.asarray(uvs, dtype=np.float32)
+
+        def lower(self, object_data):
+            return {'uuid': self.uuid, 'type': 'BufferGeometry',
+                    'data': {'attributes': {'position': g.pack_numpy_array(self.vertices.T),
+                                            'uv': g.pack_numpy_array(self.uvs.T)},
+                             'index': g.pack_numpy_array(self.faces.T)}}
+
+    return g, UVMeshGeometry
+
+
+def node_path(text):
+    """Return a meshcat Path for '/a/b/c' (commands lower a plain str with str.lower())."""
+    from meshcat.path import Path
+    return Path(tuple(part for part in text.split('/') if part))
+
+
+def start_server(host='127.0.0.1'):
+    """Start `meshcat.servers.zmqserver` as a subprocess; return (process, zmq_url, web_url)."""
+    env = dict(os.environ)
+    proc = subprocess.Popen([sys.executable, '-u', '-m', 'meshcat.servers.zmqserver'],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env,
+                            start_new_session=True)
+    zmq_url = web_url = None
+    deadline = time.monotonic() + SERVER_START_TIMEOUT
+    while (zmq_url is None or web_url is None) and time.monotonic() < deadline:
+        line = proc.stdout.readline().decode('utf-8', 'replace').strip()
+        if not line and proc.poll() is not None:
+            break
+        m = re.search(r'(tcp://[^\s]+)', line)
+        if m and zmq_url is None:
+            zmq_url = m.group(1)
+        m = re.search(r'(https?://[^\s]+)', line)
+        if m and web_url is None and 'zmq' not in line:
+            web_url = m.group(1)
+    if zmq_url is None or web_url is None:
+        proc.kill()
+        raise RuntimeError('the meshcat server did not start')
+    threading.Thread(target=_drain, args=(proc,), daemon=True).start()
+    return proc, zmq_url, web_url
+
+
+def _drain(proc):
+    for _ in iter(proc.stdout.readline, b''):
+        pass
+
+
+class MeshcatClient:
+    """A meshcat zmq client whose calls time out instead of blocking for ever."""
+
+    def __init__(self, zmq_url):
+        import zmq
+        self._zmq = zmq
+        self.zmq_url = zmq_url
+        self.ctx = zmq.Context.instance()
+        self.sock = None
+        self._connect()
+
+    def _connect(self):
+        zmq = self._zmq
+        if self.sock is not None:
+            self.sock.close(linger=0)
+        self.sock = self.ctx.socket(zmq.REQ)
+        self.sock.setsockopt(zmq.RCVTIMEO, REPLY_TIMEOUT_MS)
+        self.sock.setsockopt(zmq.SNDTIMEO, REPLY_TIMEOUT_MS)
+        self.sock.setsockopt(zmq.LINGER, 0)
+        self.sock.connect(self.zmq_url)
+
+    def request(self, parts):
+        """Send a multipart request and wait for the reply; raise TimeoutError on silence."""
+        try:
+            self.sock.send_multipart(parts)
+            return self.sock.recv()
+        except self._zmq.Again:
+            self._connect()                       # a REQ socket must be remade after this
+            raise TimeoutError('meshcat server at %s did not answer' % self.zmq_url)
+
+    def web_url(self):
+        """Ask the server for its web URL."""
+        url = self.request([b'url']).decode('utf-8')
+        self._connect()            # meshcat's own client reconnects after asking the URL
+        return url
+
+    def send(self, command):
+        """Send a meshcat command (SetObject, SetTransform, SetProperty, Delete)."""
+        import umsgpack
+        data = command.lower()
+        self.request([data['type'].encode(), data['path'].encode(), umsgpack.packb(data)])
+
+    def close(self):
+        """Close the socket."""
+        if self.sock is not None:
+            self.sock.close(linger=0)
+            self.sock = None
+
+
+class MeshcatSink:
+    """Stream HairMesh frames to a meshcat viewer from a worker thread."""
+
+    def __init__(self, head, rate=20.0, zmq_url='', logger=None, on_url=None):
+        self.head = head
+        self.rate = float(rate)
+        self.zmq_url = zmq_url
+        self.log = logger
+        self.on_url = on_url
+        self.web_url = None
+        self.frames_sent = 0
+        self.errors = 0
+        self.connected = False
+        self._server = None
+        self._latest = None
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name='meshcat', daemon=True)
+
+    def start(self):
+        """Start the worker thread."""
+        self._thread.start()
+        return self
+
+    def submit(self, mesh, head_pose):
+        """Hand over the newest frame (R, p); older unsent frames are dropped."""
+        with self._lock:
+            self._latest = (mesh, head_pose)
+        self._wake.set()
+
+    def stop(self):
+        """Stop the worker and the server it started."""
+        self._stop.set()
+        self._wake.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
+        if self._server is not None:
+            self._server.kill()
+            self._server.wait(timeout=5.0)
+            self._server = None
+
+    def _warn(self, msg):
+        if self.log is not None:
+            self.log.warning(msg, throttle_duration_sec=5.0)
+
+    def _connect(self):
+        url = self.zmq_url
+        if not url:
+            if self._server is None or self._server.poll() is not None:
+                self._server, url, web = start_server()
+                self.zmq_url_started = url
+            else:
+                url = self.zmq_url_started
+        client = MeshcatClient(url)
+        self.web_url = client.web_url()
+        self._draw_static(client)
+        if self.on_url is not None:
+            self.on_url(self.web_url)
+        self.connected = True
+        return client
+
+    def _draw_static(self, client):
+        """Draw the head once (its spheres) and frame it with the camera."""
+        from meshcat.commands import SetObject, SetProperty, SetTransform
+        g, _ = _geometry_classes()
+        import meshcat.transformations as tf
+        skin = g.MeshLambertMaterial(color=0xddb49a)
+        for i, s in enumerate(self.head.collision):
+            obj = g.Mesh(g.Sphere(float(s[3])), skin)
+            path = node_path('/hair_sim/head/sphere_%d' % i)
+            client.send(SetObject(obj, path=path))
+            client.send(SetTransform(tf.translation_matrix(s[:3]), path))
+        # the camera frames the head: 0.8 m in front, a little to the side and above
+        # (the camera's parent frame is y-up: [x, z, -y] of the world)
+        client.send(SetProperty('position', [0.8, 0.08, 0.22],
+                                node_path('/Cameras/default/rotated/<object>')))
+        for clutter in ('/Grid', '/Axes'):
+            client.send(SetProperty('visible', False, node_path(clutter)))
+
+    def _send_frame(self, client, mesh, head_pose):
+        from meshcat.commands import SetObject, SetTransform
+        g, UVMeshGeometry = _geometry_classes()
+        R, p = head_pose
+        T = np.eye(4)
+        T[:3, :3] = R
+        T[:3, 3] = p
+        client.send(SetTransform(T, node_path('/hair_sim/head')))
+        if len(mesh.indices):
+            tex = g.ImageTexture(image=g.PngImage(mesh.texture_png), wrap=[1001, 1001])
+            mat = g.MeshLambertMaterial(color=0xffffff, map=tex, transparent=True,
+                                        alphaTest=0.3, side=2)
+            geom = UVMeshGeometry(mesh.vertices, mesh.indices, mesh.uvs)
+            client.send(SetObject(g.Mesh(geom, mat), path=node_path('/hair_sim/hair')))
+        self.frames_sent += 1
+
+    def _run(self):
+        client = None
+        last_try = -1e9
+        last_sent = 0.0
+        while not self._stop.is_set():
+            self._wake.wait(timeout=0.5)
+            self._wake.clear()
+            if self._stop.is_set():
+                break
+            if client is None:
+                if time.monotonic() - last_try < RETRY_PERIOD:
+                    continue
+                last_try = time.monotonic()
+                try:
+                    client = self._connect()
+                except Exception as exc:                  # noqa: B902 - any failure: retry
+                    self.errors += 1
+                    self.connected = False
+                    self._warn('meshcat unavailable (%s); ROS topics go on, retrying' % exc)
+                    client = None
+                    continue
+            wait = 1.0 / self.rate - (time.monotonic() - last_sent)
+            if wait > 0:
+                if self._stop.wait(wait):
+                    break
+            with self._lock:
+                frame, self._latest = self._latest, None
+            if frame is None:
+                continue
+            try:
+                self._send_frame(client, *frame)
+                last_sent = time.monotonic()
+            except Exception as exc:                      # noqa: B902
+                self.errors += 1
+                self.connected = False
+                self._warn('meshcat send failed (%s); reconnecting' % exc)
+                client.close()
+                client = None
+        if client is not None:
+            client.close()
+
+
+CHROMIUM_FLAGS = ['--headless', '--no-sandbox', '--use-gl=swiftshader',
+                  '--enable-unsafe-swiftshader', '--disable-background-networking',
+                  '--disable-component-update', '--disable-sync', '--no-first-run',
+                  '--disable-quic']
+
+
+def find_chromium():
+    """Return the path of a Chromium executable, or None."""
+    import shutil
+    for name in ('chromium', 'chromium-browser', 'google-chrome'):
+        path = shutil.which(name)
+        if path:
+            return path
+    return None
+
+
+def screenshot(url, path, width=900, height=700, budget_ms=6000, timeout=90):
+    """Render `url` in headless Chromium (software WebGL) and save a PNG at `path`."""
+    import tempfile
+    chromium = find_chromium()
+    if chromium is None:
+        raise RuntimeError('no chromium executable (apt-get install chromium)')
+    with tempfile.TemporaryDirectory() as profile:
+        subprocess.run([chromium] + CHROMIUM_FLAGS + [
+            '--user-data-dir=%s' % profile, '--window-size=%d,%d' % (width, height),
+            '--virtual-time-budget=%d' % budget_ms, '--screenshot=%s' % path, url],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=timeout,
+            check=False)
+    if not os.path.isfile(path):
+        raise RuntimeError('chromium wrote no screenshot of %s' % url)
+    return path

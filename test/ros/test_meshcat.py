@@ -1,0 +1,73 @@
+"""What a person opening the meshcat URL of the demo sees: a head with textured hair."""
+
+import os
+import select
+import subprocess
+import sys
+import time
+
+import numpy as np
+from PIL import Image
+import pytest
+
+from hair_sim.sinks.meshcat_sink import find_chromium, screenshot, start_server
+
+BIN = os.path.dirname(sys.executable)
+
+
+def hair_and_skin_pixels(path):
+    """Count dark brown (hair) and skin-coloured pixels of a screenshot."""
+    img = np.asarray(Image.open(path).convert('RGB')).astype(int)
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    hair = (r > 25) & (r < 170) & (g < 0.82 * r) & (b < 0.8 * g + 10) & (r - b > 25)
+    skin = (r > 150) & (g > 0.62 * r) & (g < 0.9 * r) & (b > 0.5 * r) & (b < 0.8 * r)
+    return int(hair.sum()), int(skin.sum())
+
+
+def read_url(proc, timeout):
+    """Read the demo's stdout until its 'URL ...' line."""
+    deadline = time.monotonic() + timeout
+    buf = b''
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([proc.stdout], [], [], 1.0)
+        if ready:
+            chunk = os.read(proc.stdout.fileno(), 4096)
+            if not chunk:
+                break
+            buf += chunk
+            for line in buf.decode('utf-8', 'replace').splitlines():
+                if line.startswith('URL '):
+                    return line.split()[1]
+    raise AssertionError('the demo printed no URL: %r' % buf[-500:])
+
+
+def test_meshcat_page_shows_head_and_moving_hair(tmp_path):
+    """Screenshot the demo's page: head and hair pixels, none of either on an empty scene."""
+    if find_chromium() is None:
+        if os.environ.get('CI'):
+            pytest.fail('chromium is missing on CI: .ci/run should have installed it')
+        pytest.skip('no chromium here (apt-get install chromium)')
+    server, _, empty_url = start_server()
+    try:
+        empty = screenshot(empty_url, str(tmp_path / 'empty.png'))
+    finally:
+        server.kill()
+        server.wait()
+    demo = subprocess.Popen([os.path.join(BIN, 'hair_sim_demo'), '--duration', '120'],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    try:
+        url = read_url(demo, 90.0)
+        time.sleep(3.0)
+        first = screenshot(url, str(tmp_path / 'demo1.png'))
+        time.sleep(1.5)
+        second = screenshot(url, str(tmp_path / 'demo2.png'))
+    finally:
+        demo.terminate()
+        demo.wait(timeout=20)
+    hair0, skin0 = hair_and_skin_pixels(empty)
+    hair1, skin1 = hair_and_skin_pixels(first)
+    assert hair0 < 50 and skin0 < 50, (hair0, skin0)
+    assert hair1 > 2000 and skin1 > 5000, (hair1, skin1)
+    a = np.asarray(Image.open(first).convert('RGB')).astype(int)
+    b = np.asarray(Image.open(second).convert('RGB')).astype(int)
+    assert (np.abs(a - b).sum(axis=2) > 30).sum() > 200       # the hair moves

@@ -1,0 +1,146 @@
+"""hair_sim_node in-process (launch-free): topics, parameters, services, installed scripts."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+from rclpy.parameter import Parameter
+
+from hair_sim import paths
+from hair_sim.modeling import load_hairstyle
+from helpers.ros import spin_until
+
+HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+VENV = os.path.dirname(os.path.dirname(sys.executable))
+
+
+def test_console_scripts_are_installed_for_the_venv_and_ros2_run():
+    """hair_sim_node and hair_sim_demo are in .venv/bin and <prefix>/lib/hair_sim (ros2 run)."""
+    from ament_index_python.packages import get_package_prefix
+    os.environ.setdefault('AMENT_PREFIX_PATH', VENV)
+    prefix = get_package_prefix('hair_sim')
+    for name in ('hair_sim_node', 'hair_sim_demo'):
+        for d in (os.path.join(VENV, 'bin'), os.path.join(prefix, 'lib', 'hair_sim')):
+            path = os.path.join(d, name)
+            assert os.path.isfile(path) and os.access(path, os.X_OK), path
+
+
+def call(ex, client, srv_type, name, request):
+    """Call a service and spin until the answer comes."""
+    cli = client.create_client(srv_type, name)
+    assert cli.wait_for_service(timeout_sec=10.0)
+    future = cli.call_async(request)
+    assert spin_until(ex, future.done, 20.0)
+    return future.result()
+
+
+def test_poses_from_another_process_move_the_published_hair(node_env):
+    """Params from config/hair_sim.yaml; a separate process moves the head; HairState follows."""
+    from hair_sim_msgs.msg import HairState
+    _, ex, node, client = node_env
+    assert node.get_parameter('physics.integrator').value == 'implicit'
+    assert node.get_parameter('sim_rate').value == 240.0
+    states = []
+    client.create_subscription(HairState, 'hair_state', states.append, 10)
+    assert spin_until(ex, lambda: len(states) > 2, 20.0)
+    roots0 = np.asarray(states[-1].positions).reshape(-1, 10, 3)[:, 0]
+    proc = subprocess.Popen([sys.executable, os.path.join(HERE, 'helpers', 'pose_publisher.py'),
+                             '0.25', '0.0', '0.1', '0.0'], env=dict(os.environ, PYTHONPATH=HERE))
+    try:
+        def moved():
+            if not states:
+                return False
+            r = np.asarray(states[-1].positions).reshape(-1, 10, 3)[:, 0]
+            return np.abs(r - roots0 - [0.25, 0.0, 0.1]).max() < 1e-4
+        assert spin_until(ex, moved, 30.0), 'the hair did not follow the head'
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+    assert node.counts['poses'] > 0
+
+
+def test_markers_and_mesh_are_published_consistently(node_env):
+    """hair_markers: 3 points per triangle, a UV each, PNG texture; hair_mesh: same triangles."""
+    from hair_sim_msgs.msg import HairMesh
+    from visualization_msgs.msg import MarkerArray
+    _, ex, node, client = node_env
+    markers, meshes = [], []
+    client.create_subscription(MarkerArray, 'hair_markers', markers.append, 10)
+    client.create_subscription(HairMesh, 'hair_mesh', meshes.append, 10)
+    assert spin_until(ex, lambda: markers and meshes, 20.0)
+    m, h = markers[-1], meshes[-1]
+    n_points = sum(len(x.points) for x in m.markers)
+    assert n_points == len(h.indices) and n_points % 3 == 0
+    assert all(len(x.uv_coordinates) == len(x.points) < 65000 for x in m.markers)
+    assert all(x.texture.format == 'png' and len(x.texture.data) > 100 for x in m.markers)
+    assert {x.header.frame_id for x in m.markers} == {node.sim.head.frame_id}
+
+
+def test_parameter_changes_take_effect_or_are_refused(node_env):
+    """Valid changes apply on the next step; out of range, mistyped or unstable ones don't."""
+    _, ex, node, _ = node_env
+    res = node.set_parameters([Parameter('physics.damping', value=8.0)])
+    assert res[0].successful and node.sim.params.damping == 8.0
+    for prm, fragment in [(Parameter('physics.damping', value=-1.0), 'damping'),
+                          (Parameter('physics.damping', value='soft'), 'Wrong parameter type'),
+                          (Parameter('publish_rate', value=0.0), 'publish_rate'),
+                          (Parameter('physics.integrator', value='rk4'), 'integrator'),
+                          (Parameter('viewpoint', value=[0.0, float('nan'), 1.0]), 'finite')]:
+        res = node.set_parameters([prm])
+        assert not res[0].successful and fragment in res[0].reason, (prm.name, res[0].reason)
+    res = node.set_parameters_atomically([Parameter('physics.integrator', value='explicit'),
+                                          Parameter('physics.stiffness_scale', value=60.0)])
+    assert not res.successful and 'unstable' in res.reason
+    assert node.sim.params.integrator == 'implicit' and node.sim.params.damping == 8.0
+    res = node.set_parameters([Parameter('physics.integrator', value='explicit')])
+    assert res[0].successful and node.sim.params.integrator == 'explicit'
+    assert node.counts['params_refused'] >= 3          # (type and range: rclpy refuses first)
+
+
+def test_services_load_edit_save_reload_reset(node_env, tmp_path):
+    """Load a shipped style, edit (the mesh changes near that control hair only), save, reload."""
+    from hair_sim_msgs.srv import EditControlPoint, LoadHairstyle, SaveHairstyle
+    from std_srvs.srv import Trigger
+    _, ex, node, client = node_env
+    r = call(ex, client, LoadHairstyle, '/hair_sim/load_hairstyle',
+             LoadHairstyle.Request(path='bob_fringe'))
+    assert r.success, r.message
+    assert node.sim.style.name == 'bob_fringe'
+    r = call(ex, client, LoadHairstyle, '/hair_sim/load_hairstyle',
+             LoadHairstyle.Request(path='no_such_style'))
+    assert not r.success and 'no hairstyle' in r.message
+    assert node.sim.style.name == 'bob_fringe'
+    assert call(ex, client, Trigger, '/hair_sim/reset', Trigger.Request()).success
+    before = node.sim.mesh()
+    patch = node.sim.style.patches[0]
+    req = EditControlPoint.Request(patch=0, control_hair=5, control_point=4)
+    x, y, z = patch.points[5, 4] + [0.0, 0.0, 0.02]
+    req.position.x, req.position.y, req.position.z = float(x), float(y), float(z)
+    r = call(ex, client, EditControlPoint, '/hair_sim/edit_control_point', req)
+    assert r.success, r.message
+    after = node.sim.mesh()
+    changed = np.abs(after.vertices - before.vertices).reshape(
+        after.n_strips, -1, 3).max(axis=(1, 2)) > 1e-3
+    u = node.sim.strips.strand_u[node.sim.strips.strip_strands[:, 0]]
+    lo, hi = patch.knots_u[5], patch.knots_u[5 + patch.degree_u + 1]
+    in_patch0 = node.sim.strips.strip_patch == 0
+    assert changed.any() and not changed[~in_patch0].any()
+    assert np.all((u[changed] > lo - 0.05) & (u[changed] < hi + 0.05))
+    r = call(ex, client, SaveHairstyle, '/hair_sim/save_hairstyle',
+             SaveHairstyle.Request(path=str(tmp_path / 'mine.yaml')))
+    assert r.success, r.message
+    saved = load_hairstyle(str(tmp_path / 'mine.yaml'))
+    np.testing.assert_array_equal(saved.patches[0].points, node.sim.style.patches[0].points)
+    r = call(ex, client, SaveHairstyle, '/hair_sim/save_hairstyle',
+             SaveHairstyle.Request(path='/etc/evil.yaml'))
+    assert not r.success and 'outside' in r.message
+    r = call(ex, client, LoadHairstyle, '/hair_sim/load_hairstyle',
+             LoadHairstyle.Request(path='mine'))
+    assert r.success and node.sim.style.patches[0].points[5, 4, 2] == z
+    node.sim.step(1 / 240)
+    r = call(ex, client, Trigger, '/hair_sim/reset', Trigger.Request())
+    assert r.success
+    np.testing.assert_allclose(node.sim.pos, node.sim.rest @ node.sim.head_pose[0].T
+                               + node.sim.head_pose[1], atol=1e-12)
+    assert os.path.isfile(paths.shipped_style('bob_fringe'))
