@@ -121,6 +121,39 @@ def rotate_charts(chart, R):
 
 
 @njit(cache=True)
+def root_kinematics(root_head, spheres_head, R, p, v, a, w, alpha, roots, root_acc, spheres,
+                    sphere_vel):
+    """
+    Place roots and spheres with the head and give their accelerations and velocities.
+
+    A point at r from the head origin moves with v + w x r and accelerates with
+    a + alpha x r + w x (w x r) (the inertial force of thesis eq. 5 uses the roots').
+    """
+    for s in range(root_head.shape[0]):
+        hx, hy, hz = root_head[s, 0], root_head[s, 1], root_head[s, 2]
+        rx = R[0, 0] * hx + R[0, 1] * hy + R[0, 2] * hz
+        ry = R[1, 0] * hx + R[1, 1] * hy + R[1, 2] * hz
+        rz = R[2, 0] * hx + R[2, 1] * hy + R[2, 2] * hz
+        roots[s, 0], roots[s, 1], roots[s, 2] = rx + p[0], ry + p[1], rz + p[2]
+        cx = w[1] * rz - w[2] * ry
+        cy = w[2] * rx - w[0] * rz
+        cz = w[0] * ry - w[1] * rx
+        root_acc[s, 0] = a[0] + alpha[1] * rz - alpha[2] * ry + w[1] * cz - w[2] * cy
+        root_acc[s, 1] = a[1] + alpha[2] * rx - alpha[0] * rz + w[2] * cx - w[0] * cz
+        root_acc[s, 2] = a[2] + alpha[0] * ry - alpha[1] * rx + w[0] * cy - w[1] * cx
+    for k in range(spheres_head.shape[0]):
+        hx, hy, hz = spheres_head[k, 0], spheres_head[k, 1], spheres_head[k, 2]
+        rx = R[0, 0] * hx + R[0, 1] * hy + R[0, 2] * hz
+        ry = R[1, 0] * hx + R[1, 1] * hy + R[1, 2] * hz
+        rz = R[2, 0] * hx + R[2, 1] * hy + R[2, 2] * hz
+        spheres[k, 0], spheres[k, 1], spheres[k, 2] = rx + p[0], ry + p[1], rz + p[2]
+        spheres[k, 3] = spheres_head[k, 3]
+        sphere_vel[k, 0] = v[0] + w[1] * rz - w[2] * ry
+        sphere_vel[k, 1] = v[1] + w[2] * rx - w[0] * rz
+        sphere_vel[k, 2] = v[2] + w[0] * ry - w[1] * rx
+
+
+@njit(cache=True)
 def strand_sphere_masks(root, reach, spheres, masks):
     """Broad phase: bit k of masks[s] is set when sphere k can touch strand s."""
     n_s = root.shape[0]
@@ -161,25 +194,31 @@ def external_forces(pos, pos_prev, h_prev, mass, length, root_acc, gravity, wind
 
     F = rho d (g + a) + d f: gravity, the inertial force of the root's acceleration and the
     wind drag 0.5 rho_air Cd width l |v_perp| v_perp on the segment's relative velocity.
+    The gusts' wavelengths (0.5 - 3 m) are longer than a strand, so the turbulence is
+    evaluated once per strand, at its middle vertex.
     """
     n_s, n_seg = mass.shape
     inv_h = 1.0 / h_prev
+    mid_v = (n_seg + 1) // 2
     for s in range(n_s):
         ax = gravity[0] - root_acc[s, 0]
         ay = gravity[1] - root_acc[s, 1]
         az = gravity[2] - root_acc[s, 2]
+        wx = wy = wz = 0.0
+        if wind_on:
+            wx, wy, wz = _wind_at(pos[s, mid_v, 0], pos[s, mid_v, 1], pos[s, mid_v, 2], t,
+                                  wind_base, wind_amp, mdir, mk, mw, mph)
         for i in range(n_seg):
             m = mass[s, i]
             fx, fy, fz = m * ax, m * ay, m * az
             if wind_on:
                 seg_len = length[s, i]
-                mx = 0.5 * (pos[s, i, 0] + pos[s, i + 1, 0])
-                my = 0.5 * (pos[s, i, 1] + pos[s, i + 1, 1])
-                mz = 0.5 * (pos[s, i, 2] + pos[s, i + 1, 2])
-                vx = (mx - 0.5 * (pos_prev[s, i, 0] + pos_prev[s, i + 1, 0])) * inv_h
-                vy = (my - 0.5 * (pos_prev[s, i, 1] + pos_prev[s, i + 1, 1])) * inv_h
-                vz = (mz - 0.5 * (pos_prev[s, i, 2] + pos_prev[s, i + 1, 2])) * inv_h
-                wx, wy, wz = _wind_at(mx, my, mz, t, wind_base, wind_amp, mdir, mk, mw, mph)
+                vx = 0.5 * (pos[s, i, 0] + pos[s, i + 1, 0]
+                            - pos_prev[s, i, 0] - pos_prev[s, i + 1, 0]) * inv_h
+                vy = 0.5 * (pos[s, i, 1] + pos[s, i + 1, 1]
+                            - pos_prev[s, i, 1] - pos_prev[s, i + 1, 1]) * inv_h
+                vz = 0.5 * (pos[s, i, 2] + pos[s, i + 1, 2]
+                            - pos_prev[s, i, 2] - pos_prev[s, i + 1, 2]) * inv_h
                 rx, ry, rz = wx - vx, wy - vy, wz - vz
                 dx = (pos[s, i + 1, 0] - pos[s, i, 0]) / seg_len
                 dy = (pos[s, i + 1, 1] - pos[s, i, 1]) / seg_len
@@ -324,17 +363,10 @@ def _scalp_projection(x, y, z, scalp):
 
 
 @njit(cache=True)
-def wall_signed_distance(pos, scalp, a, b, j):
-    """
-    Signed distance of vertex j of strand a from strand b's projected wall (thesis 5.2).
-
-    The wall is the polygon from b's vertex Q down to its scalp projection Q', locally the
-    plane through Q spanned by b's tangent and QQ'. Returns (distance, nx, ny, nz, along)
-    with the unit normal and the position of a's vertex along QQ' (0 at Q, 1 at Q').
-    """
+def _wall_sd(pos, px, py, pz, a, b, j):
+    """wall_signed_distance with Q's scalp projection (px, py, pz) given."""
     n_v = pos.shape[1]
     qx, qy, qz = pos[b, j, 0], pos[b, j, 1], pos[b, j, 2]
-    px, py, pz = _scalp_projection(qx, qy, qz, scalp)
     j0 = max(j - 1, 0)
     j1 = min(j + 1, n_v - 1)
     tx = pos[b, j1, 0] - pos[b, j0, 0]
@@ -355,7 +387,21 @@ def wall_signed_distance(pos, scalp, a, b, j):
 
 
 @njit(cache=True)
-def strip_springs(pos, length, scalp, pairs, rest1, k1, wall_sign, k2, d2, rest3, k3, f_end):
+def wall_signed_distance(pos, scalp, a, b, j):
+    """
+    Signed distance of vertex j of strand a from strand b's projected wall (thesis 5.2).
+
+    The wall is the polygon from b's vertex Q down to its scalp projection Q', locally the
+    plane through Q spanned by b's tangent and QQ'. Returns (distance, nx, ny, nz, along)
+    with the unit normal and the position of a's vertex along QQ' (0 at Q, 1 at Q').
+    """
+    px, py, pz = _scalp_projection(pos[b, j, 0], pos[b, j, 1], pos[b, j, 2], scalp)
+    return _wall_sd(pos, px, py, pz, a, b, j)
+
+
+@njit(cache=True)
+def strip_springs(pos, length, scalp, pairs, rest1, k1, wall_sign, k2, d2, rest3, k3, f_end,
+                  proj):
     """
     Springs of thesis 5.2, eq. 11 (F = -k x), added to the end forces of the segments.
 
@@ -363,10 +409,15 @@ def strip_springs(pos, length, scalp, pairs, rest1, k1, wall_sign, k2, d2, rest3
     when a vertex comes within d2 of its neighbour's projected wall and pushes it back to
     d2; type 3 joins a vertex to its own scalp projection (rest3 < 0 disables it). The
     constants are per metre of strand, scaled by the length of the segment each vertex ends.
-    Returns the number of type-2 springs inserted.
+    Returns the number of type-2 springs inserted. proj is scratch space (n_strands,
+    n_vertices, 3) for every vertex's scalp projection, computed once and shared.
     """
     n_v = pos.shape[1]
     inserted = 0
+    for s in range(pos.shape[0]):
+        for j in range(1, n_v):
+            px, py, pz = _scalp_projection(pos[s, j, 0], pos[s, j, 1], pos[s, j, 2], scalp)
+            proj[s, j, 0], proj[s, j, 1], proj[s, j, 2] = px, py, pz
     for q in range(pairs.shape[0]):
         a, b = pairs[q, 0], pairs[q, 1]
         for j in range(1, n_v):
@@ -386,7 +437,8 @@ def strip_springs(pos, length, scalp, pairs, rest1, k1, wall_sign, k2, d2, rest3
             if k2 > 0.0:
                 for side in range(2):
                     me, other = (a, b) if side == 0 else (b, a)
-                    sd, nx, ny, nz, along = wall_signed_distance(pos, scalp, me, other, j)
+                    sd, nx, ny, nz, along = _wall_sd(pos, proj[other, j, 0], proj[other, j, 1],
+                                                     proj[other, j, 2], me, other, j)
                     sd *= wall_sign[q, j, side]
                     taper = min(1.0, max(0.0, 4.0 * (along + 0.25)),
                                 max(0.0, 4.0 * (1.25 - along)))
@@ -406,9 +458,9 @@ def strip_springs(pos, length, scalp, pairs, rest1, k1, wall_sign, k2, d2, rest3
             for j in range(1, n_v):
                 if rest3[s, j] < 0.0:
                     continue
-                x, y, z = pos[s, j, 0], pos[s, j, 1], pos[s, j, 2]
-                px, py, pz = _scalp_projection(x, y, z, scalp)
-                dx, dy, dz = x - px, y - py, z - pz
+                dx = pos[s, j, 0] - proj[s, j, 0]
+                dy = pos[s, j, 1] - proj[s, j, 1]
+                dz = pos[s, j, 2] - proj[s, j, 2]
                 d = sqrt(dx * dx + dy * dy + dz * dz)
                 if d > 1e-12:
                     f = -k3 * length[s, j - 1] * (d - rest3[s, j]) / d

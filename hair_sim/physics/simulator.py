@@ -52,6 +52,7 @@ class HairSimulator:
                          'turn_clamps': 0}
         self.last_step_time = 0.0
         self.stability_dt = DEFAULT_DT      # the step set_params checks stability at
+        self.broad_phase = True             # skip spheres a strand cannot reach
         self._R = np.eye(3)
         self._p = np.zeros(3)
 
@@ -101,6 +102,11 @@ class HairSimulator:
         self.f_dist = np.zeros((n_s, n_seg, 3))
         self.f_end = np.zeros((n_s, n_seg, 3))
         self.masks = np.zeros(n_s, dtype=np.int64)
+        self._roots = np.zeros((n_s, 3))
+        self._proj = np.zeros((n_s, n_seg + 1, 3))
+        self._root_acc = np.zeros((n_s, 3))
+        self._spheres = np.zeros_like(self.spheres_head)
+        self._sphere_vel = np.zeros((len(self.spheres_head), 3))
         self.stats = np.zeros(5)
         self._update_material()
         self._place_at_rest()
@@ -159,6 +165,25 @@ class HairSimulator:
     def reset(self):
         """Put the hair back at its rest shape under the current head pose, awake."""
         self._place_at_rest()
+
+    def set_directions(self, directions):
+        """Place every segment along `directions` (n_strands, n_segments, 3, world), at rest."""
+        d = np.asarray(directions, dtype=np.float64)
+        d = np.ascontiguousarray(d / np.linalg.norm(d, axis=-1, keepdims=True))
+        kernels.init_charts(d, self.chart, self.theta, self.phi)
+        self.theta_prev[:] = self.theta
+        self.phi_prev[:] = self.phi
+        roots = self.root_head @ self._R.T + self._p
+        self.pos[:, 0] = roots
+        self.pos[:, 1:] = roots[:, None] + np.cumsum(d * self.length[..., None], axis=1)
+        self.pos_prev[:] = self.pos
+        self._wake('directions')
+
+    def kinetic_energy(self):
+        """Return the kinetic energy (J) of the segments' midpoints over the last step."""
+        v = (self.pos - self.pos_prev) / self._h_prev
+        vm = 0.5 * (v[:, 1:] + v[:, :-1])
+        return float(0.5 * (self.mass[..., None] * vm ** 2).sum())
 
     # ----------------------------------------------------------------- inputs
     def set_head_pose(self, stamp_s, position_xyz, quaternion_xyzw):
@@ -292,18 +317,19 @@ class HairSimulator:
     def _simulate(self, t, h):
         """One awake step: forces (eqs. 5, 7-11), then eq. 1 root to tip with the guard."""
         p = self.params
-        R, head_p = self._R, self._p
-        roots = self.root_head @ R.T + head_p
-        r = roots - head_p
-        w, alpha = self._w, self._alpha
-        root_acc = self._a + np.cross(alpha, r) + np.cross(w, np.cross(w, r))
-        spheres = self.spheres_head.copy()
-        spheres[:, :3] = self.spheres_head[:, :3] @ R.T + head_p
-        sphere_vel = self._v + np.cross(w, spheres[:, :3] - head_p)
+        R = np.ascontiguousarray(self._R)
+        roots, root_acc = self._roots, self._root_acc
+        spheres, sphere_vel = self._spheres, self._sphere_vel
+        kernels.root_kinematics(self.root_head, self.spheres_head, R, self._p, self._v,
+                                self._a, self._w, self._alpha, roots, root_acc, spheres,
+                                sphere_vel)
         c = self.counters
         if p.collisions:
-            c['broad_phase_checks'] += kernels.strand_sphere_masks(roots, self.reach, spheres,
-                                                                   self.masks)
+            if self.broad_phase:
+                c['broad_phase_checks'] += kernels.strand_sphere_masks(roots, self.reach,
+                                                                       spheres, self.masks)
+            else:                          # every sphere tested against every strand
+                self.masks[:] = (np.int64(1) << np.int64(len(spheres))) - 1
         wind_on = self.wind.active
         drag = 0.5 * p.air_density * p.drag_coefficient * p.drag_width
         kernels.external_forces(self.pos, self.pos_prev, self._h_prev, self.mass, self.length,
@@ -319,16 +345,15 @@ class HairSimulator:
             c['kernel_calls'] += 1
         if p.inter_strip and len(self.pairs):
             c['wall_springs'] += kernels.strip_springs(
-                self.pos, self.length, np.ascontiguousarray(spheres[:self.n_scalp]), self.pairs,
-                self.rest1,
+                self.pos, self.length, spheres[:self.n_scalp], self.pairs, self.rest1,
                 p.neighbor_stiffness, self.wall_sign, p.wall_stiffness, p.wall_distance,
-                self.rest3, p.scalp_stiffness, self.f_end)
+                self.rest3, p.scalp_stiffness, self.f_end, self._proj)
             c['kernel_calls'] += 1
         integ = kernels.EXPLICIT if p.integrator == 'explicit' else kernels.IMPLICIT
         c['segment_updates'] += kernels.integrate_strands(
             self.theta, self.phi, self.theta_prev, self.phi_prev, self.chart, self.rest_dir,
             self.length, self.inv_inertia, self.k_hinge, p.damping, self.f_dist, self.f_end,
-            np.ascontiguousarray(R), roots, spheres, self.masks, p.collisions, self.pos,
+            R, roots, spheres, self.masks, p.collisions, self.pos,
             self.pos_prev, h, integ, self.stats)
         c['kernel_calls'] += 1
         c['awake_steps'] += 1

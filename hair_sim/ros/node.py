@@ -24,7 +24,7 @@ from hair_sim.modeling.safepath import resolve_style_path
 from hair_sim.physics.params import PhysicsParams
 from hair_sim.physics.simulator import HairSimulator, stability_problem
 from hair_sim.ros.params import all_parameters
-from hair_sim.sinks.markers import marker_array_cdr, marker_geometry, MarkerLayout
+from hair_sim.sinks.markers import MarkerEncoder, MarkerLayout
 from hair_sim.sinks.mesh_msg import hair_mesh_cdr, hair_state_cdr
 
 PHYSICS = 'physics.'
@@ -65,7 +65,7 @@ class HairSimNode(Node):
         problem = stability_problem(self.sim.params, self.sim, self.sim.stability_dt)
         if problem:
             raise ValueError('physics parameters refused: %s' % problem)
-        self._layout = None
+        self._encoder = None
         self._mesh_count = 0
         self._clock_last = None
         self._acc = 0.0
@@ -217,12 +217,15 @@ class HairSimNode(Node):
         R, p = sim.head_pose
         sec, nsec = _stamp(self.get_clock().now().nanoseconds * 1e-9)
         frame = sim.head.frame_id
-        if self._layout is None or self._layout.tris_per_strip != mesh.tris_per_strip:
-            self._layout = MarkerLayout(sim.strips.n_strips, mesh.tris_per_strip)
         if self._p('publish_markers'):
-            geometry = marker_geometry(mesh, R, p, self._layout)
-            self.pub_markers.publish(marker_array_cdr(geometry, mesh.texture_id,
-                                                      mesh.texture_png, frame, sec, nsec))
+            enc = self._encoder
+            if enc is None or enc.layout.tris_per_strip != mesh.tris_per_strip \
+                    or enc.texture_id != mesh.texture_id:
+                full = mesh if mesh.n_strips == sim.strips.n_strips else sim.mesh()
+                layout = MarkerLayout(sim.strips.n_strips, mesh.tris_per_strip, full)
+                enc = self._encoder = MarkerEncoder(layout, mesh.texture_id, mesh.texture_png,
+                                                    frame)
+            self.pub_markers.publish(enc.encode(mesh, R, p, sec, nsec))
         if self._p('publish_mesh'):
             with_tex = self._mesh_count % self._p('texture_every') == 0
             self.pub_mesh.publish(hair_mesh_cdr(mesh, mesh.vertices, self._p('world_frame'),
@@ -274,7 +277,7 @@ class HairSimNode(Node):
         try:
             style = self._load(request.path)
             self.sim.set_style(style)
-            self._layout = None
+            self._encoder = None
         except (HairstyleError, ValueError, OSError) as exc:
             response.success, response.message = False, str(exc)
             self.get_logger().warning('load_hairstyle refused: %s' % exc)
@@ -290,7 +293,7 @@ class HairSimNode(Node):
                                                       request.control_point,
                                                       (pos.x, pos.y, pos.z))
             self.sim.set_style(style)
-            self._layout = None
+            self._encoder = None
         except (HairstyleError, ValueError) as exc:
             response.success, response.message = False, str(exc)
             return response

@@ -64,13 +64,20 @@ class CdrWriter:
         self.uint32(len(b))
         self._raw(b)
 
+    def offset_of_next(self, align):
+        """Return the byte offset (in the whole message) where a value of `align` goes next."""
+        return len(ENCAPSULATION) + self.pos + (-self.pos) % align
+
     def array(self, arr, align):
-        """Write a sequence of fixed-size elements: count, then the contiguous bytes."""
+        """Write a sequence: count, then the contiguous bytes; return the bytes' offset."""
         arr = np.ascontiguousarray(arr)
         self.uint32(len(arr))
         if len(arr):
             self._align(align)
+        start = len(ENCAPSULATION) + self.pos
+        if len(arr):
             self._raw(arr.tobytes())
+        return start
 
     def octets(self, data):
         """Write a uint8[] sequence."""

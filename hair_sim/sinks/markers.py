@@ -11,6 +11,9 @@ once; a culled strip's triangles collapse onto its root instead of disappearing)
 embedded PNG texture (texture_resource 'embedded://...', format 'png'), head frame id.
 """
 
+import struct
+
+from numba import njit
 import numpy as np
 
 from hair_sim.sinks.cdr import CdrWriter
@@ -21,49 +24,78 @@ NAMESPACE = 'hair'
 
 
 class MarkerLayout:
-    """Which strips go into which marker, fixed for a style and render LOD."""
+    """
+    Which strips go into which marker, fixed for a style and render LOD.
 
-    def __init__(self, n_strips, tris_per_strip, max_points=MAX_POINTS):
+    The UV of every marker point depends only on the style and LOD (a culled strip keeps
+    its UVs under its collapsed points), so they are taken once from a full mesh.
+    """
+
+    def __init__(self, n_strips, tris_per_strip, full_mesh=None, max_points=MAX_POINTS):
         per = max(1, (max_points - 1) // (3 * tris_per_strip))
         self.groups = [np.arange(i, min(i + per, n_strips)) for i in range(0, n_strips, per)]
         self.tris_per_strip = tris_per_strip
+        self.n_strips = n_strips
+        self.uv_points = None
+        if full_mesh is not None:
+            if full_mesh.n_strips != n_strips:
+                raise ValueError('the layout needs a mesh of every strip')
+            self.uv_points = np.ascontiguousarray(full_mesh.uvs[full_mesh.indices.reshape(-1)])
+
+
+@njit(cache=True)
+def _gather_points(vertices, indices, slot, nt3, R, p, out):
+    """Write head-frame points of every strip slot (slot[s] < 0: collapsed onto vertex 0)."""
+    for s in range(slot.shape[0]):
+        k = slot[s]
+        for q in range(nt3):
+            o = s * nt3 + q
+            v = 0 if k < 0 else indices[k * nt3 + q]
+            x = vertices[v, 0] - p[0]
+            y = vertices[v, 1] - p[1]
+            z = vertices[v, 2] - p[2]
+            out[o, 0] = R[0, 0] * x + R[1, 0] * y + R[2, 0] * z
+            out[o, 1] = R[0, 1] * x + R[1, 1] * y + R[2, 1] * z
+            out[o, 2] = R[0, 2] * x + R[1, 2] * y + R[2, 2] * z
 
 
 def marker_geometry(mesh, R, p, layout):
     """
     Return per marker (points (n, 3) float64 head frame, uvs (n, 2) float32).
 
-    Strips absent from `mesh` (culled) keep their slots with every point at the first
-    vertex of a drawn strip's root (zero-area triangles), so the counts stay constant.
+    Strips absent from `mesh` (culled) keep their slots with every point at the mesh's
+    first vertex (zero-area triangles), so the counts stay constant.
     """
-    verts = (mesh.vertices.astype(np.float64) - p) @ R           # world -> head frame
-    nt = layout.tris_per_strip
-    tri = mesh.indices.reshape(-1, nt, 3)
-    slot = {int(s): k for k, s in enumerate(mesh.strip_ids)}
-    out = []
-    for group in layout.groups:
-        points = np.zeros((len(group), nt * 3, 3))
-        uvs = np.zeros((len(group), nt * 3, 2), dtype=np.float32)
-        for g, s in enumerate(group):
-            k = slot.get(int(s))
-            if k is None:
-                if len(verts):
-                    points[g] = verts[0]
-                continue
-            idx = tri[k].reshape(-1)
-            points[g] = verts[idx]
-            uvs[g] = mesh.uvs[idx]
-        out.append((points.reshape(-1, 3), uvs.reshape(-1, 2)))
-    return out
+    nt3 = layout.tris_per_strip * 3
+    slot = np.full(layout.n_strips, -1, dtype=np.int64)
+    slot[mesh.strip_ids.astype(np.int64)] = np.arange(mesh.n_strips)
+    points = np.empty((layout.n_strips * nt3, 3))
+    _gather_points(mesh.vertices, mesh.indices.reshape(-1).astype(np.int64), slot, nt3,
+                   np.ascontiguousarray(R, dtype=np.float64), np.asarray(p, dtype=np.float64),
+                   points)
+    if layout.uv_points is not None:
+        uvs = layout.uv_points
+    else:
+        uvs = np.zeros((layout.n_strips * nt3, 2), dtype=np.float32)
+        drawn = (mesh.strip_ids.astype(np.int64)[:, None] * nt3 + np.arange(nt3)).reshape(-1)
+        uvs[drawn] = mesh.uvs[mesh.indices.reshape(-1)]
+    return [(points[g[0] * nt3:(g[-1] + 1) * nt3], uvs[g[0] * nt3:(g[-1] + 1) * nt3])
+            for g in layout.groups]
 
 
 def marker_array_cdr(geometry, texture_id, texture_png, frame_id, sec, nanosec,
-                     with_padding=False):
-    """Return the serialized MarkerArray of `geometry` (and its padding ranges if asked)."""
+                     with_padding=False, offsets=None):
+    """
+    Return the serialized MarkerArray of `geometry` (and its padding ranges if asked).
+
+    offsets, a list, receives per marker the byte offsets of its two stamps and of its
+    points, so an encoder can rewrite just those in a copy (MarkerEncoder).
+    """
     w = CdrWriter()
     w.uint32(len(geometry))
     resource = 'embedded://%s.png' % texture_id
     for mid, (points, uvs) in enumerate(geometry):
+        stamps = [w.offset_of_next(4)]
         w.header(sec, nanosec, frame_id)
         w.string(NAMESPACE)
         w.int32(mid)
@@ -77,9 +109,10 @@ def marker_array_cdr(geometry, texture_id, texture_png, frame_id, sec, nanosec,
             w.float32(v)
         w.time(0, 0)                                 # lifetime: for ever
         w.boolean(False)                             # frame_locked
-        w.array(np.asarray(points, dtype='<f8'), 8)  # geometry_msgs/Point[]
+        start = w.array(np.asarray(points, dtype='<f8'), 8)   # geometry_msgs/Point[]
         w.uint32(0)                                  # colors[]
         w.string(resource)
+        stamps.append(w.offset_of_next(4))
         w.header(sec, nanosec, frame_id)             # texture: sensor_msgs/CompressedImage
         w.string('png')
         w.octets(texture_png)
@@ -89,7 +122,48 @@ def marker_array_cdr(geometry, texture_id, texture_png, frame_id, sec, nanosec,
         w.string('')                                 # mesh_file.filename
         w.uint32(0)                                  # mesh_file.data
         w.boolean(False)                             # mesh_use_embedded_materials
+        if offsets is not None:
+            offsets.append((stamps, start, len(points)))
     return w.bytes() if not with_padding else (w.bytes(), w.padding)
+
+
+class MarkerEncoder:
+    """
+    Serialize hair MarkerArrays fast: the message is laid out once per layout and texture
+    (all constant fields, texture and UVs); a frame writes only its stamps and points.
+    """
+
+    def __init__(self, layout, texture_id, texture_png, frame_id):
+        self.layout = layout
+        self.texture_id = texture_id
+        nt3 = 3 * layout.tris_per_strip
+        self.points = np.zeros((layout.n_strips * nt3, 3))
+        uvs = layout.uv_points if layout.uv_points is not None else np.zeros(
+            (len(self.points), 2), np.float32)
+        geo = [(self.points[g[0] * nt3:(g[-1] + 1) * nt3], uvs[g[0] * nt3:(g[-1] + 1) * nt3])
+               for g in layout.groups]
+        self.offsets = []
+        self.template = bytearray(marker_array_cdr(geo, texture_id, texture_png, frame_id,
+                                                   0, 0, offsets=self.offsets))
+        self._slot = np.full(layout.n_strips, -1, dtype=np.int64)
+
+    def encode(self, mesh, R, p, sec, nanosec):
+        """Return the serialized MarkerArray of `mesh` (world) under head pose (R, p)."""
+        nt3 = 3 * self.layout.tris_per_strip
+        self._slot[:] = -1
+        self._slot[mesh.strip_ids.astype(np.int64)] = np.arange(mesh.n_strips)
+        _gather_points(mesh.vertices, mesh.indices.reshape(-1).astype(np.int64), self._slot,
+                       nt3, np.ascontiguousarray(R, dtype=np.float64),
+                       np.asarray(p, dtype=np.float64), self.points)
+        buf = self.template
+        first = 0
+        for stamps, start, n in self.offsets:
+            for off in stamps:
+                struct.pack_into('<iI', buf, off, sec, nanosec)
+            view = np.frombuffer(buf, dtype='<f8', count=3 * n, offset=start)
+            view[:] = self.points[first:first + n].reshape(-1)
+            first += n
+        return bytes(buf)
 
 
 def build_marker_array(geometry, texture_id, texture_png, frame_id, sec, nanosec):

@@ -30,7 +30,8 @@ def test_marker_array_fast_path_is_byte_exact():
     R, p = sim.head_pose
     for viewpoint in (None, [0.8, 0.0, 0.1]):
         mesh = sim.mesh(viewpoint=viewpoint)
-        layout = MarkerLayout(sim.strips.n_strips, mesh.tris_per_strip)
+        layout = MarkerLayout(sim.strips.n_strips, mesh.tris_per_strip,
+                              None if viewpoint else mesh)
         geo = marker_geometry(mesh, R, p, layout)
         fast, pad = marker_array_cdr(geo, mesh.texture_id, mesh.texture_png, 'head', 7, 42,
                                      with_padding=True)
@@ -46,7 +47,7 @@ def test_marker_contents_follow_the_jazzy_rules():
     sim.step(DEFAULT_DT)
     R, p = sim.head_pose
     mesh = sim.mesh()
-    layout = MarkerLayout(sim.strips.n_strips, mesh.tris_per_strip)
+    layout = MarkerLayout(sim.strips.n_strips, mesh.tris_per_strip, mesh)
     geo = marker_geometry(mesh, R, p, layout)
     arr = build_marker_array(geo, mesh.texture_id, mesh.texture_png, 'head', 1, 2)
     assert len(arr.markers) >= 2
@@ -66,6 +67,12 @@ def test_marker_contents_follow_the_jazzy_rules():
     assert culled.n_strips < mesh.n_strips
     geo2 = marker_geometry(culled, R, p, layout)
     assert [len(g[0]) for g in geo2] == [len(g[0]) for g in geo]
+    assert all(len(g[1]) == len(g[0]) for g in geo2)
+    kept = culled.strip_ids[0]                         # a drawn strip: the same points
+    nt3 = 3 * mesh.tris_per_strip
+    pts1 = np.concatenate([g[0] for g in geo])[kept * nt3:(kept + 1) * nt3]
+    pts2 = np.concatenate([g[0] for g in geo2])[kept * nt3:(kept + 1) * nt3]
+    np.testing.assert_array_equal(pts1, pts2)
 
 
 def test_hair_mesh_and_state_fast_paths_are_byte_exact():
@@ -93,3 +100,22 @@ def test_hair_mesh_and_state_fast_paths_are_byte_exact():
     ref.header.stamp.sec, ref.header.stamp.nanosec, ref.header.frame_id = 5, 6, 'world'
     assert same_bytes_but_padding(st, serialize_message(ref), pad)
     assert msg == ref
+
+
+def test_marker_encoder_matches_the_slow_path_frame_after_frame():
+    """MarkerEncoder rewrites only stamps and points; every frame equals the slow path."""
+    from visualization_msgs.msg import MarkerArray
+    from hair_sim.sinks.markers import MarkerEncoder
+    sim = moving_sim()
+    full = sim.mesh()
+    layout = MarkerLayout(sim.strips.n_strips, full.tris_per_strip, full)
+    enc = MarkerEncoder(layout, full.tris_per_strip and full.texture_id, full.texture_png,
+                        'head')
+    for k, viewpoint in enumerate((None, [0.8, 0.0, 0.0], None)):
+        sim.step(DEFAULT_DT)
+        R, p = sim.head_pose
+        mesh = sim.mesh(viewpoint=viewpoint)
+        fast = enc.encode(mesh, R, p, 100 + k, 7)
+        slow = build_marker_array(marker_geometry(mesh, R, p, layout), mesh.texture_id,
+                                  mesh.texture_png, 'head', 100 + k, 7)
+        assert deserialize_message(fast, MarkerArray) == slow

@@ -1,0 +1,237 @@
+"""
+hair_sim_bench accuracy: work against precision of both integrators.
+
+1. pendulum: one segment with hinge spring, against the exact ODE (scipy DOP853, rtol
+   1e-10) of the same equation and the analytic small-angle period;
+2. chain: a 10-segment strand released from horizontal, against an independent exact
+   articulated chain: the Lagrangian of 10 rigid rods with the same absolute-angle hinge
+   springs, gravity and damping, integrated by scipy. Anjyo's model lets each segment
+   swing about its start as if that were fixed; the chain carries the inertia and weight of
+   everything below each joint. The difference is the model's own error;
+3. hairstyle: the sample style under scripted head motion and wind, against the same solver
+   at dt = 1/20000 s.
+"""
+
+import math
+
+import numpy as np
+
+from hair_sim import load_hairstyle, load_head, paths
+from hair_sim.bench.common import cpu_time, DT_FULL, DT_QUICK, progress, save_figure
+from hair_sim.physics.params import PhysicsParams
+from hair_sim.physics.scripts import demo
+from hair_sim.physics.simulator import HairSimulator
+
+INTEGRATORS = ('explicit', 'implicit')
+
+
+def _head():
+    return load_head(paths.heads_dir() + '/default_adult.yaml')
+
+
+def _bare(rest, integrator, **params):
+    base = dict(integrator=integrator, collisions=False, inter_strip=False,
+                gravity_compensation=False)
+    base.update(params)
+    return HairSimulator.from_strands(rest, _head(), **base)
+
+
+def _run_sampled(sim, dt, duration, every, motion=None):
+    """
+    Step sim for `duration`, recording positions every `every` seconds (a multiple of dt).
+
+    Returns (sample times, positions (T, ...), ok): ok means finite, and the step guard
+    (MAX_TURN) fired on under 1 % of segment-steps (an unstable run trips it every step).
+    """
+    m = int(round(every / dt))
+    if abs(m * dt - every) > 1e-9 * every:
+        raise ValueError('sample period %g is not a multiple of dt %g' % (every, dt))
+    n = int(round(duration / dt))
+    times, out = [0.0], [sim.pos.copy()]
+    for i in range(1, n + 1):
+        t = i * dt
+        if motion is not None:
+            p, q = motion(t)
+            sim.set_head_pose(t, p, q)
+        sim.step(dt)
+        if not np.all(np.isfinite(sim.pos)):
+            return np.array(times), np.array(out), False
+        if i % m == 0:
+            times.append(t)
+            out.append(sim.pos.copy())
+    clamps = sim.counters['turn_clamps']
+    return np.array(times), np.array(out), clamps <= 0.01 * n * sim.length.size
+
+
+def _errors(a, b):
+    d = np.linalg.norm(a - b, axis=-1)
+    return float(np.sqrt(np.mean(d ** 2))), float(np.mean(d[-1]))
+
+
+# ------------------------------------------------------------------ 1. pendulum
+def pendulum_reference(length, amplitude, duration, params):
+    """Dense exact solution of I th'' = -k th - m g (l/2) sin th - gamma I th' (th from down)."""
+    from scipy.integrate import solve_ivp
+    m = params.linear_density * length
+    inertia = m * length ** 2 / 3.0
+    k = params.bending_stiffness / length
+
+    def rhs(_t, y):
+        th, w = y
+        return [w, (-k * th - m * params.gravity * length / 2 * math.sin(th)) / inertia
+                - params.damping * w]
+
+    sol = solve_ivp(rhs, (0.0, duration), [amplitude, 0.0], method='DOP853', rtol=1e-10,
+                    atol=1e-12, dense_output=True)
+
+    def tip(times):
+        th = sol.sol(times)[0]
+        return np.stack([np.sin(th) * length, np.zeros_like(th), -np.cos(th) * length], -1)
+    return tip
+
+
+def pendulum_records(dts, duration):
+    """Records of scenario 1 for every integrator and dt."""
+    length, amp = 0.03, 0.3
+    params = PhysicsParams()
+    ref = pendulum_reference(length, amp, duration, params)
+    root = np.array([0.0, 0.0, 1.0])
+    start = np.array([[[math.sin(amp), 0.0, -math.cos(amp)]]])
+    out = []
+    for integ in INTEGRATORS:
+        for dt in progress(dts, 'pendulum %s' % integ):
+            sim = _bare(np.array([[root, root + [0, 0, -length]]]), integ, damping=12.0)
+            sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+            sim.set_directions(start)
+            (times, pos, ok), cost = cpu_time(_run_sampled, sim, dt, duration, dt)
+            rms, final = _errors(pos[:, 0, 1] - root, ref(times))
+            out.append({'scenario': 'pendulum', 'integrator': integ, 'dt': dt,
+                        'cost_s_per_sim_s': cost / duration, 'rms_error_m': rms,
+                        'final_error_m': final, 'stable': ok})
+    return out
+
+
+# ------------------------------------------------------------------ 2. chain
+def chain_reference(n, length, duration, params):
+    """Exact planar chain of n rods, absolute angles phi from the horizontal (y up)."""
+    from scipy.integrate import solve_ivp
+    m = params.linear_density * length
+    k = params.bending_stiffness / length
+    i_end = m * length ** 2 / 3.0
+    i_c = m * length ** 2 / 12.0
+    rest = -math.pi / 2
+    # a[k, i]: lever of rod i's angle in the position of rod k's centre
+    a = np.zeros((n, n))
+    for kk in range(n):
+        a[kk, :kk] = length
+        a[kk, kk] = length / 2
+    c = (m * a[:, :, None] * a[:, None, :]).sum(axis=0)       # c_ij = sum_k m a_ki a_kj
+    g_lever = m * a.sum(axis=0)                               # sum_k m a_ki
+
+    def rhs(_t, y):
+        phi, w = y[:n], y[n:]
+        diff = phi[:, None] - phi[None, :]
+        M = c * np.cos(diff) + np.diag(np.full(n, i_c))
+        q = (-k * (phi - rest) - params.gravity * np.cos(phi) * g_lever
+             - params.damping * i_end * w)
+        rhs_q = q - (c * np.sin(diff) * w[None, :] ** 2).sum(axis=1)
+        return np.concatenate([w, np.linalg.solve(M, rhs_q)])
+
+    sol = solve_ivp(rhs, (0.0, duration), np.zeros(2 * n), method='DOP853', rtol=1e-10,
+                    atol=1e-12, dense_output=True)
+
+    def vertices(times):
+        phi = sol.sol(times)[:n].T                                # (T, n)
+        steps = np.stack([np.cos(phi), np.zeros_like(phi), np.sin(phi)], axis=-1) * length
+        return np.concatenate([np.zeros((len(times), 1, 3)), np.cumsum(steps, axis=1)], 1)
+    return vertices
+
+
+def chain_records(dts, duration):
+    """Records of scenario 2 (10 segments from horizontal) for every integrator and dt."""
+    n, length = 10, 0.03
+    params = PhysicsParams()
+    ref = chain_reference(n, length, duration, params)
+    root = np.array([0.0, 0.0, 1.0])
+    rest = np.array([root + [0, 0, -length * j] for j in range(n + 1)])[None]
+    out = []
+    for integ in INTEGRATORS:
+        for dt in progress(dts, 'chain %s' % integ):
+            sim = _bare(rest, integ)
+            sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+            sim.set_directions(np.tile([1.0, 0.0, 0.0], (1, n, 1)))
+            (times, pos, ok), cost = cpu_time(_run_sampled, sim, dt, duration, dt)
+            rms, final = _errors(pos[:, 0] - root, ref(times))
+            out.append({'scenario': 'chain', 'integrator': integ, 'dt': dt,
+                        'cost_s_per_sim_s': cost / duration, 'rms_error_m': rms,
+                        'final_error_m': final, 'stable': ok})
+    return out
+
+
+# ------------------------------------------------------------------ 3. hairstyle
+def hairstyle_records(dts, duration, ref_dt=1.0 / 24000):
+    """
+    Records of scenario 3: the sample style, scripted head motion and wind.
+
+    The reference is the same solver at ref_dt (1/24000 s: every tested dt is a multiple of
+    it); positions are compared every 1/gcd seconds, a time every run steps onto.
+    """
+    style = load_hairstyle(paths.shipped_style('thesis_long'))
+    rates = [int(round(1 / dt)) for dt in dts]
+    every = 1.0 / math.gcd(*rates)
+
+    def run(integ, dt):
+        sim = HairSimulator(style, integrator=integ)
+        sim.set_head_pose(0.0, *demo(0.0))
+        sim.set_wind([3.0, 1.0, 0.0], turbulence=0.3, seed=1)
+        return cpu_time(_run_sampled, sim, dt, duration, every, motion=demo)
+
+    out = []
+    for integ in INTEGRATORS:
+        (_, ref, _), _ = run(integ, ref_dt)
+        for dt in progress(dts, 'hairstyle %s' % integ):
+            (_, pos, ok), cost = run(integ, dt)
+            rms, final = _errors(pos, ref) if ok else (float('nan'), float('nan'))
+            out.append({'scenario': 'hairstyle', 'integrator': integ, 'dt': dt,
+                        'cost_s_per_sim_s': cost / duration, 'rms_error_m': rms,
+                        'final_error_m': final, 'stable': ok})
+    return out
+
+
+def run(quick=False, plot_dir=None):
+    """Run the three scenarios; return the records (and write one plot per scenario)."""
+    dts = DT_QUICK if quick else DT_FULL
+    records = pendulum_records(dts, 0.5 if quick else 2.0)
+    records += chain_records(dts, 0.5 if quick else 2.0)
+    records += hairstyle_records(dts, 0.2 if quick else 2.0,
+                                 ref_dt=1.0 / 4000 if quick else 1.0 / 24000)
+    if plot_dir:
+        plot(records, plot_dir)
+    return records
+
+
+def plot(records, plot_dir):
+    """Write a log-log work-precision plot per scenario."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    paths_out = []
+    for scen in ('pendulum', 'chain', 'hairstyle'):
+        fig, ax = plt.subplots(figsize=(5, 4))
+        for integ, marker in zip(INTEGRATORS, 'os'):
+            rs = [r for r in records if r['scenario'] == scen and r['integrator'] == integ
+                  and r['stable'] and r['rms_error_m'] and r['rms_error_m'] > 0]
+            if rs:
+                ax.loglog([r['cost_s_per_sim_s'] for r in rs], [r['rms_error_m'] for r in rs],
+                          marker=marker, label=integ)
+                for r in rs:
+                    ax.annotate('1/%d' % round(1 / r['dt']), (r['cost_s_per_sim_s'],
+                                                            r['rms_error_m']), fontsize=6)
+        ax.axhline(1e-3, color='0.6', lw=0.8, ls='--')
+        ax.set_xlabel('CPU s per simulated s')
+        ax.set_ylabel('RMS vertex error (m)')
+        ax.set_title('work-precision: %s' % scen)
+        ax.legend()
+        paths_out.append(save_figure(fig, '%s/accuracy_%s.png' % (plot_dir, scen)))
+        plt.close(fig)
+    return paths_out

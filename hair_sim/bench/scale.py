@@ -1,0 +1,123 @@
+"""
+hair_sim_bench scale: cost per frame against the number of strips (thesis table 5.1).
+
+Styles of 20 .. 2000 strips are the sample style refined to that many strips (physics
+LOD). Per row: simulated and rendered vertices, physics step, frame (tessellation +
+U-shape), marker bytes and meshcat encoding in ms, and end-to-end frames per second
+with the default substeps per 60 Hz frame, beside the thesis' frames per second.
+"""
+
+import time
+
+import numpy as np
+
+from hair_sim import load_hairstyle, paths
+from hair_sim.bench.common import progress, save_figure
+from hair_sim.physics.scripts import demo
+from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator
+from hair_sim.sinks.markers import MarkerEncoder, MarkerLayout
+
+THESIS_FPS = {20: 81, 52: 79, 84: 67, 116: 59, 148: 46, 180: 41}
+STRIPS_FULL = [20, 52, 84, 116, 148, 180, 500, 1000, 2000]
+STRIPS_QUICK = [20, 180]
+SUBSTEPS = int(round(1.0 / (60 * DEFAULT_DT)))
+
+
+def meshcat_encode(mesh):
+    """Encode the hair as the meshcat sink does (SetObject lowered and packed)."""
+    import meshcat.geometry as g
+    from meshcat.commands import SetObject
+    import umsgpack
+    from hair_sim.sinks.meshcat_sink import _geometry_classes, node_path
+    _, UVMeshGeometry = _geometry_classes()
+    tex = g.ImageTexture(image=g.PngImage(mesh.texture_png))
+    mat = g.MeshLambertMaterial(map=tex, transparent=True, alphaTest=0.3)
+    cmd = SetObject(g.Mesh(UVMeshGeometry(mesh.vertices, mesh.indices, mesh.uvs), mat),
+                    path=node_path('/hair_sim/hair'))
+    return umsgpack.packb(cmd.lower())
+
+
+def median_ms(fn, repeats):
+    """Return the median wall time of fn() in ms (one core, after a warm-up call)."""
+    fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return 1e3 * float(np.median(times))
+
+
+def row(n_strips, repeats):
+    """Measure one style size."""
+    style = load_hairstyle(paths.shipped_style('thesis_long')).with_strip_count(n_strips)
+    sim = HairSimulator(style)
+    sim.set_head_pose(0.0, *demo(0.0))
+    sim.set_wind([2.0, 0.5, 0.0], turbulence=0.3, seed=2)
+    clock = [0.0]
+
+    def step():
+        clock[0] += DEFAULT_DT
+        sim.set_head_pose(clock[0], *demo(clock[0]))
+        sim.step(DEFAULT_DT)
+
+    for _ in range(20):
+        step()
+    step_ms = median_ms(step, repeats * SUBSTEPS)
+    mesh_ms = median_ms(sim.mesh, repeats)
+    mesh = sim.mesh()
+    layout = MarkerLayout(sim.strips.n_strips, mesh.tris_per_strip, mesh)
+    R, p = sim.head_pose
+
+    encoder = MarkerEncoder(layout, mesh.texture_id, mesh.texture_png, 'head')
+
+    def markers():
+        return encoder.encode(mesh, R, p, 0, 0)
+
+    marker_ms = median_ms(markers, repeats)
+    meshcat_ms = median_ms(lambda: meshcat_encode(mesh), max(3, repeats // 3))
+    frame_ms = SUBSTEPS * step_ms + mesh_ms + marker_ms
+    return {'strips': n_strips, 'simulated_vertices': int(sim.pos.shape[0] * sim.pos.shape[1]),
+            'rendered_vertices': int(len(mesh.vertices)), 'physics_step_ms': step_ms,
+            'substeps_per_frame': SUBSTEPS, 'frame_ms': mesh_ms, 'marker_bytes_ms': marker_ms,
+            'marker_bytes': len(markers()), 'meshcat_encode_ms': meshcat_ms,
+            'end_to_end_ms': frame_ms, 'end_to_end_fps': 1e3 / frame_ms,
+            'thesis_fps': THESIS_FPS.get(n_strips)}
+
+
+def run(quick=False, plot_dir=None):
+    """Measure every size; the meshcat encode runs on its own thread in the node, so
+    end-to-end counts physics, U-shape and marker bytes (the ROS path)."""
+    sizes = STRIPS_QUICK if quick else STRIPS_FULL
+    records = [row(n, 5 if quick else 30) for n in progress(sizes, 'scale')]
+    if plot_dir:
+        plot(records, plot_dir)
+    return records
+
+
+def plot(records, plot_dir):
+    """Plot fps and per-stage ms against strips."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    n = [r['strips'] for r in records]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+    a.loglog(n, [r['end_to_end_fps'] for r in records], 'o-', label='hair_sim end to end')
+    t = [r for r in records if r['thesis_fps']]
+    a.loglog([r['strips'] for r in t], [r['thesis_fps'] for r in t], 's--',
+             label='thesis table 5.1 (2003)')
+    a.axhline(60, color='0.6', ls=':', lw=0.8)
+    a.set_xlabel('strips')
+    a.set_ylabel('frames per second')
+    a.legend()
+    for key, label in (('physics_step_ms', 'physics step'), ('frame_ms', 'tessellation + U-shape'),
+                       ('marker_bytes_ms', 'marker bytes'), ('meshcat_encode_ms', 'meshcat encode'),
+                       ('end_to_end_ms', 'end to end (%d steps)' % records[0]['substeps_per_frame'])):
+        b.loglog(n, [r[key] for r in records], 'o-', label=label)
+    b.set_xlabel('strips')
+    b.set_ylabel('ms')
+    b.legend(fontsize=7)
+    fig.suptitle('hair_sim_bench scale (one core)')
+    path = save_figure(fig, '%s/scale.png' % plot_dir)
+    plt.close(fig)
+    return path
