@@ -225,8 +225,8 @@ def plot(records, plot_dir):
                 ax.loglog([r['cost_s_per_sim_s'] for r in rs], [r['rms_error_m'] for r in rs],
                           marker=marker, label=integ)
                 for r in rs:
-                    ax.annotate('1/%d' % round(1 / r['dt']), (r['cost_s_per_sim_s'],
-                                                            r['rms_error_m']), fontsize=6)
+                    xy = (r['cost_s_per_sim_s'], r['rms_error_m'])
+                    ax.annotate('1/%d' % round(1 / r['dt']), xy, fontsize=6)
         ax.axhline(1e-3, color='0.6', lw=0.8, ls='--')
         ax.set_xlabel('CPU s per simulated s')
         ax.set_ylabel('RMS vertex error (m)')

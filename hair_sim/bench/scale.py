@@ -110,9 +110,10 @@ def plot(records, plot_dir):
     a.set_xlabel('strips')
     a.set_ylabel('frames per second')
     a.legend()
-    for key, label in (('physics_step_ms', 'physics step'), ('frame_ms', 'tessellation + U-shape'),
-                       ('marker_bytes_ms', 'marker bytes'), ('meshcat_encode_ms', 'meshcat encode'),
-                       ('end_to_end_ms', 'end to end (%d steps)' % records[0]['substeps_per_frame'])):
+    series = (('physics_step_ms', 'physics step'), ('frame_ms', 'tessellation + U-shape'),
+              ('marker_bytes_ms', 'marker bytes'), ('meshcat_encode_ms', 'meshcat encode'),
+              ('end_to_end_ms', 'end to end (%d steps)' % records[0]['substeps_per_frame']))
+    for key, label in series:
         b.loglog(n, [r[key] for r in records], 'o-', label=label)
     b.set_xlabel('strips')
     b.set_ylabel('ms')
