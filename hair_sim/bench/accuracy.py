@@ -91,7 +91,7 @@ def pendulum_reference(length, amplitude, duration, params):
 
 
 def pendulum_records(dts, duration):
-    """Records of scenario 1 for every integrator and dt."""
+    """Return the records of scenario 1 for every integrator and dt."""
     length, amp = 0.03, 0.3
     params = PhysicsParams()
     ref = pendulum_reference(length, amp, duration, params)
@@ -148,7 +148,7 @@ def chain_reference(n, length, duration, params):
 
 
 def chain_records(dts, duration):
-    """Records of scenario 2 (10 segments from horizontal) for every integrator and dt."""
+    """Return the records of scenario 2 (10 segments from horizontal), every integrator/dt."""
     n, length = 10, 0.03
     params = PhysicsParams()
     ref = chain_reference(n, length, duration, params)
@@ -171,7 +171,7 @@ def chain_records(dts, duration):
 # ------------------------------------------------------------------ 3. hairstyle
 def hairstyle_records(dts, duration, ref_dt=1.0 / 24000):
     """
-    Records of scenario 3: the sample style, scripted head motion and wind.
+    Return the records of scenario 3: the sample style, scripted head motion and wind.
 
     The reference is the same solver at ref_dt (1/24000 s: every tested dt is a multiple of
     it); positions are compared every 1/gcd seconds, a time every run steps onto.

@@ -86,8 +86,12 @@ def row(n_strips, repeats):
 
 
 def run(quick=False, plot_dir=None):
-    """Measure every size; the meshcat encode runs on its own thread in the node, so
-    end-to-end counts physics, U-shape and marker bytes (the ROS path)."""
+    """
+    Measure every size.
+
+    The meshcat encoding runs on its own thread in the node, so end to end counts the
+    physics substeps, the U-shape and the marker bytes (the ROS path).
+    """
     sizes = STRIPS_QUICK if quick else STRIPS_FULL
     records = [row(n, 5 if quick else 30) for n in progress(sizes, 'scale')]
     if plot_dir:

@@ -129,8 +129,10 @@ def marker_array_cdr(geometry, texture_id, texture_png, frame_id, sec, nanosec,
 
 class MarkerEncoder:
     """
-    Serialize hair MarkerArrays fast: the message is laid out once per layout and texture
-    (all constant fields, texture and UVs); a frame writes only its stamps and points.
+    Serialize hair MarkerArrays fast.
+
+    The message is laid out once per layout and texture (all constant fields, texture and
+    UVs); a frame writes only its stamps and points.
     """
 
     def __init__(self, layout, texture_id, texture_png, frame_id):
