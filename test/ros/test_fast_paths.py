@@ -103,13 +103,13 @@ def test_hair_mesh_and_state_fast_paths_are_byte_exact():
 
 
 def test_marker_encoder_matches_the_slow_path_frame_after_frame():
-    """MarkerEncoder rewrites only stamps and points; every frame equals the slow path."""
+    """The encoder rewrites only stamps and points; every frame equals the slow path."""
     from visualization_msgs.msg import MarkerArray
     from hair_sim.sinks.markers import MarkerEncoder
     sim = moving_sim()
     full = sim.mesh()
     layout = MarkerLayout(sim.strips.n_strips, full.tris_per_strip, full)
-    enc = MarkerEncoder(layout, full.tris_per_strip and full.texture_id, full.texture_png,
+    enc = MarkerEncoder(layout, full.texture_id, full.texture_png,
                         'head')
     for k, viewpoint in enumerate((None, [0.8, 0.0, 0.0], None)):
         sim.step(DEFAULT_DT)
