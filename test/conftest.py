@@ -5,6 +5,8 @@ import random
 
 import pytest
 
+from hair_sim import paths
+
 # Keep DDS discovery on this machine and away from any other ROS graph running here.
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random(os.getpid()).randint(100, 200)))
@@ -22,3 +24,30 @@ def ros_context():
         yield context
     finally:
         rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture
+def node_env(tmp_path):
+    """Yield (context, executor, node, client node) with the shipped params file loaded."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    from hair_sim.ros.node import HairSimNode
+
+    ctx = Context()
+    params = os.path.join(paths.config_dir(), 'hair_sim.yaml')
+    rclpy.init(context=ctx, args=['--ros-args', '--params-file', params,
+                                  '-p', 'hairstyle_dirs:=["", "%s"]' % tmp_path])
+    node = HairSimNode(context=ctx)
+    client = rclpy.create_node('hair_sim_test_client', context=ctx)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    ex.add_node(client)
+    try:
+        yield ctx, ex, node, client
+    finally:
+        ex.shutdown()
+        node.destroy_node()
+        client.destroy_node()
+        rclpy.try_shutdown(context=ctx)

@@ -21,8 +21,9 @@ def resolve_style_path(request, dirs, must_exist):
 
     A request is a name ('thesis_long'), a relative path ('mine/long.yaml') or an absolute
     path inside a configured directory. '..' components, other absolute paths, symlinks
-    leading out of the directories and names not ending in .yaml are refused. For a save
-    (must_exist False) the directory must exist; the file need not.
+    leading out of their directory and names not ending in .yaml are refused. A name that
+    exists in a directory resolves there (the first such); a new file for a save goes to the
+    first configured directory that is not the shipped one (the shipped one if alone).
     """
     if not isinstance(request, str) or not request.strip():
         raise HairstyleError('empty hairstyle path')
@@ -34,21 +35,32 @@ def resolve_style_path(request, dirs, must_exist):
     if '..' in req.replace('\\', '/').split('/'):
         raise HairstyleError('path %r: ".." is not allowed' % request)
     roots = allowed_dirs(dirs)
-    candidates = [req] if os.path.isabs(req) else [os.path.join(r, req) for r in roots]
-    for cand in candidates:
-        real = os.path.realpath(cand)
-        inside = [r for r in roots if os.path.commonpath([real, r]) == r]
-        if not inside:
-            continue
-        if must_exist and not os.path.isfile(real):
-            continue
-        if not must_exist and not os.path.isdir(os.path.dirname(real)):
-            continue
-        return real
-    if os.path.isabs(req) and not any(
-            os.path.commonpath([os.path.realpath(req), r]) == r for r in roots):
-        raise HairstyleError('path %r is outside the hairstyle directories' % request)
+
+    def inside(real, root):
+        return os.path.commonpath([real, root]) == root
+
+    if os.path.isabs(req):
+        real = os.path.realpath(req)
+        homes = [r for r in roots if inside(os.path.abspath(req), r)]
+        if not homes or not inside(real, homes[0]):
+            raise HairstyleError('path %r is outside the hairstyle directories' % request)
+        candidates = [(homes[0], req)]
+    else:
+        candidates = [(r, os.path.join(r, req)) for r in roots]
+    for root, cand in candidates:
+        if os.path.lexists(cand):
+            real = os.path.realpath(cand)
+            if not inside(real, root):
+                raise HairstyleError('path %r leads out of %s (symlink)' % (request, root))
+            if must_exist and not os.path.isfile(real):
+                raise HairstyleError('%r is not a file' % request)
+            return real
     if must_exist:
         raise HairstyleError('no hairstyle %r in %s' % (request, ', '.join(roots)))
-    raise HairstyleError('path %r: its directory is not inside the hairstyle directories'
-                         % request)
+    shipped = os.path.realpath(paths.hairstyles_dir())
+    root, cand = next(((r, c) for r, c in candidates if r != shipped), candidates[0])
+    real = os.path.realpath(cand)
+    if not inside(real, root) or not os.path.isdir(os.path.dirname(real)):
+        raise HairstyleError('path %r: its directory is not inside the hairstyle directories'
+                             % request)
+    return real

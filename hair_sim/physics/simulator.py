@@ -52,6 +52,8 @@ class HairSimulator:
                          'turn_clamps': 0}
         self.last_step_time = 0.0
         self.stability_dt = DEFAULT_DT      # the step set_params checks stability at
+        self.state_version = 0              # bumped whenever positions may have changed
+        self._mesh_cache = None
         self.broad_phase = True             # skip spheres a strand cannot reach
         self._R = np.eye(3)
         self._p = np.zeros(3)
@@ -160,6 +162,7 @@ class HairSimulator:
         self._quiet_ref = None
         self.sleeping = False
         self._wake_reason = 'start'
+        self.state_version += 1
         self.stats[3] = 1.0
 
     def reset(self):
@@ -177,6 +180,7 @@ class HairSimulator:
         self.pos[:, 0] = roots
         self.pos[:, 1:] = roots[:, None] + np.cumsum(d * self.length[..., None], axis=1)
         self.pos_prev[:] = self.pos
+        self.state_version += 1
         self._wake('directions')
 
     def kinetic_energy(self):
@@ -245,6 +249,7 @@ class HairSimulator:
             for arr in (self.pos, self.pos_prev):
                 arr[:] = (arr - self._p) @ dR.T + p_new
             self._R, self._p = R_new, p_new.copy()
+            self.state_version += 1
             self._v[:] = 0.0
             self._w[:] = 0.0
             self._a[:] = 0.0
@@ -357,6 +362,7 @@ class HairSimulator:
             self.pos_prev, h, integ, self.stats)
         c['kernel_calls'] += 1
         c['awake_steps'] += 1
+        self.state_version += 1
         c['recharts'] = int(self.stats[1])
         c['guard_moves'] = int(self.stats[2])
         c['turn_clamps'] = int(self.stats[4])
@@ -374,8 +380,19 @@ class HairSimulator:
         return self._renderer
 
     def mesh(self, viewpoint=None, point_centre=False):
-        """Return the U-shape HairMesh of the current state (world frame, thesis 3)."""
-        return self.renderer(point_centre).mesh(self.pos, self._R, self._p, viewpoint)
+        """
+        Return the U-shape HairMesh of the current state (world frame, thesis 3).
+
+        The mesh is a function of the state, so while the hair sleeps (the state does not
+        change) the last one is handed out again: sleeping hair costs no rendering either.
+        """
+        key = (self.state_version, None if viewpoint is None else tuple(
+            float(v) for v in viewpoint), point_centre)
+        if self._mesh_cache is not None and self._mesh_cache[0] == key:
+            return self._mesh_cache[1]
+        mesh = self.renderer(point_centre).mesh(self.pos, self._R, self._p, viewpoint)
+        self._mesh_cache = (key, mesh)
+        return mesh
 
     def strand_positions(self):
         """Return a copy of the strand vertices, (n_strands, n_vertices, 3), world frame."""

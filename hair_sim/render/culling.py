@@ -1,8 +1,8 @@
 """
 Visibility culling: strips that cannot be seen from a viewpoint are not drawn (thesis 3.3).
 
-A strip is skipped only when it faces away from the viewpoint and all of it, its
-vertices and its U-shape walls, lies in the shadow of the head's spheres. The ball test is
+A strip is skipped only when all of it, its vertices and its U-shape walls, lies in the
+shadow of the head's spheres (so it faces away too). The ball test is
 exact: a ball B is shadowed by sphere S when it lies inside the cone of rays from the eye
 that touch S and no nearer to the eye than the tangent length sqrt(|ES|^2 - r^2) (any ray
 in that cone has entered S by then). Strips are covered by balls around their simulated
@@ -14,6 +14,8 @@ from math import asin, sqrt
 
 from numba import njit
 import numpy as np
+
+from hair_sim.render.ushape import strip_wall_bottoms
 
 
 @njit(cache=True)
@@ -118,7 +120,8 @@ def _patch_hidden(p0, p1, q0, q1, dev, eye, occ, leaf):
 
 
 @njit(cache=True)
-def visible_strips(pos, strip_strands, sigma, bottoms, eye, occ, leaf, out):
+def visible_strips(pos, strip_strands, sigma, scalp, centre, rs, delta, max_dist, fix_len,
+                   eye, occ, leaf, bottoms, out):
     """
     Write 1 into out[s] for strips that may be seen from eye, 0 for culled ones.
 
@@ -126,31 +129,30 @@ def visible_strips(pos, strip_strands, sigma, bottoms, eye, occ, leaf, out):
     within |second difference| / 6 of it (refined control polygons of a cubic B-spline
     stay between the control polygon and the curve); its wall runs down to bottoms close
     to those of the simulated vertices. Each edge segment with its wall is a bilinear patch
-    thickened by that deviation; a strip is culled when it faces away and every patch is
-    in the shadow of the spheres. Returns the number of visible strips.
+    thickened by that deviation; a strip is culled when every patch is in the shadow of
+    the spheres (only strips facing away can be). A strip with a simulated vertex in plain
+    view is visible at once; the wall bottoms (scratch array `bottoms`) and the patches are
+    worked out only for the others. Returns the number of visible strips.
     """
     n_strips = strip_strands.shape[0]
     V = pos.shape[1]
     count = 0
     for s in range(n_strips):
         a, b = strip_strands[s, 0], strip_strands[s, 1]
-        # facing: the outer side is -sigma * (AB x AC); away if the eye is behind it all
-        facing_away = True
-        for j in range(V - 1):
-            abx = pos[b, j, 0] - pos[a, j, 0]
-            aby = pos[b, j, 1] - pos[a, j, 1]
-            abz = pos[b, j, 2] - pos[a, j, 2]
-            acx = pos[a, j + 1, 0] - pos[a, j, 0]
-            acy = pos[a, j + 1, 1] - pos[a, j, 1]
-            acz = pos[a, j + 1, 2] - pos[a, j, 2]
-            nx = -sigma[s] * (aby * acz - abz * acy)
-            ny = -sigma[s] * (abz * acx - abx * acz)
-            nz = -sigma[s] * (abx * acy - aby * acx)
-            if nx * (eye[0] - pos[a, j, 0]) + ny * (eye[1] - pos[a, j, 1]) \
-                    + nz * (eye[2] - pos[a, j, 2]) > 0.0:
-                facing_away = False
+        # cheap and exact first: a simulated vertex in plain view makes the strip visible
+        vis = False
+        for q in range(2):
+            st = a if q == 0 else b
+            for j in range(V):
+                if not _ball_hidden(pos[st, j, 0], pos[st, j, 1], pos[st, j, 2], 0.0, eye,
+                                    occ):
+                    vis = True
+                    break
+            if vis:
                 break
-        vis = not facing_away
+        if not vis:
+            strip_wall_bottoms(pos, strip_strands, s, sigma[s], scalp, centre, rs, delta,
+                               max_dist, fix_len, bottoms)
         for q in range(2):
             if vis:
                 break

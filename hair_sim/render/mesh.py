@@ -89,11 +89,10 @@ class HairRenderer:
     def visible(self, pos, R, p, viewpoint):
         """Return the indices of the strips that may be seen from `viewpoint` (world)."""
         scalp, occ, centre, rs = self._world(R, p)
-        ushape.wall_bottoms(pos, self.strip_strands, self.sigma, scalp, centre, rs,
-                            self.delta, self.max_distance, self.fix_length, self._bottoms)
-        culling.visible_strips(pos, self.strip_strands, self.sigma, self._bottoms,
+        culling.visible_strips(pos, self.strip_strands, self.sigma, scalp, centre, rs,
+                               self.delta, self.max_distance, self.fix_length,
                                np.asarray(viewpoint, dtype=np.float64), occ, CULL_LEAF,
-                               self._vis)
+                               self._bottoms, self._vis)
         return np.flatnonzero(self._vis)
 
     def mesh(self, pos, R, p, viewpoint=None, frame_id='world', walls=True):

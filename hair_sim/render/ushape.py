@@ -189,35 +189,35 @@ def ushape(grid, sigma, strips, scalp, centre, rs, delta, max_dist, fix_len, out
 
 
 @njit(cache=True)
-def wall_bottoms(pos, strip_strands, sigma, scalp, centre, rs, delta, max_dist, fix_len, out):
-    """Write where the U-shape wall below every simulated vertex ends, fix-ups included."""
+def strip_wall_bottoms(pos, strip_strands, s, sigma_s, scalp, centre, rs, delta, max_dist,
+                       fix_len, out):
+    """Write where the U-shape walls below strip s's simulated vertices end (fix-ups too)."""
     V = pos.shape[1]
-    for s in range(strip_strands.shape[0]):
-        for side in range(2):
-            a = strip_strands[s, side]
-            b = strip_strands[s, 1 - side]
-            for j in range(V):
-                ax, ay, az = pos[a, j, 0], pos[a, j, 1], pos[a, j, 2]
-                tx, ty, tz = tangent_point(ax, ay, az, pos[b, j, 0], pos[b, j, 1],
-                                           pos[b, j, 2], centre, rs)
-                px, py, pz = project_to_scalp(ax, ay, az, tx, ty, tz, scalp, delta)
-                # the strip normal AB x AC with A the left edge, as ushape() takes it
-                l0, l1 = strip_strands[s, 0], strip_strands[s, 1]
-                j0, j1 = max(j - 1, 0), min(j + 1, V - 1)
-                bx = pos[l1, j, 0] - pos[l0, j, 0]
-                by = pos[l1, j, 1] - pos[l0, j, 1]
-                bz = pos[l1, j, 2] - pos[l0, j, 2]
-                cx = 0.5 * (pos[l0, j1, 0] + pos[l1, j1, 0] - pos[l0, j0, 0] - pos[l1, j0, 0])
-                cy = 0.5 * (pos[l0, j1, 1] + pos[l1, j1, 1] - pos[l0, j0, 1] - pos[l1, j0, 1])
-                cz = 0.5 * (pos[l0, j1, 2] + pos[l1, j1, 2] - pos[l0, j0, 2] - pos[l1, j0, 2])
-                nx, ny, nz = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx
-                nn = sqrt(nx * nx + ny * ny + nz * nz)
-                if nn > 1e-18:
-                    nx, ny, nz = sigma[s] * nx / nn, sigma[s] * ny / nn, sigma[s] * nz / nn
-                vx, vy, vz = px - ax, py - ay, pz - az
-                if vx * vx + vy * vy + vz * vz > max_dist * max_dist or \
-                        vx * nx + vy * ny + vz * nz < 0.0:
-                    px, py, pz = ax + fix_len * nx, ay + fix_len * ny, az + fix_len * nz
-                out[a, j, 0] = px
-                out[a, j, 1] = py
-                out[a, j, 2] = pz
+    l0, l1 = strip_strands[s, 0], strip_strands[s, 1]
+    for side in range(2):
+        a = strip_strands[s, side]
+        b = strip_strands[s, 1 - side]
+        for j in range(V):
+            ax, ay, az = pos[a, j, 0], pos[a, j, 1], pos[a, j, 2]
+            tx, ty, tz = tangent_point(ax, ay, az, pos[b, j, 0], pos[b, j, 1], pos[b, j, 2],
+                                       centre, rs)
+            px, py, pz = project_to_scalp(ax, ay, az, tx, ty, tz, scalp, delta)
+            # the strip normal AB x AC with A the left edge, as ushape() takes it
+            j0, j1 = max(j - 1, 0), min(j + 1, V - 1)
+            bx = pos[l1, j, 0] - pos[l0, j, 0]
+            by = pos[l1, j, 1] - pos[l0, j, 1]
+            bz = pos[l1, j, 2] - pos[l0, j, 2]
+            cx = 0.5 * (pos[l0, j1, 0] + pos[l1, j1, 0] - pos[l0, j0, 0] - pos[l1, j0, 0])
+            cy = 0.5 * (pos[l0, j1, 1] + pos[l1, j1, 1] - pos[l0, j0, 1] - pos[l1, j0, 1])
+            cz = 0.5 * (pos[l0, j1, 2] + pos[l1, j1, 2] - pos[l0, j0, 2] - pos[l1, j0, 2])
+            nx, ny, nz = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx
+            nn = sqrt(nx * nx + ny * ny + nz * nz)
+            if nn > 1e-18:
+                nx, ny, nz = sigma_s * nx / nn, sigma_s * ny / nn, sigma_s * nz / nn
+            vx, vy, vz = px - ax, py - ay, pz - az
+            if vx * vx + vy * vy + vz * vz > max_dist * max_dist or \
+                    vx * nx + vy * ny + vz * nz < 0.0:
+                px, py, pz = ax + fix_len * nx, ay + fix_len * ny, az + fix_len * nz
+            out[a, j, 0] = px
+            out[a, j, 1] = py
+            out[a, j, 2] = pz

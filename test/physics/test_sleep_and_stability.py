@@ -103,3 +103,19 @@ def test_strands_at_the_poles_stay_away_from_the_singularity():
     assert sim.counters['recharts'] > 0
     assert sim.min_sin_theta >= 0.42
     assert np.all(np.isfinite(sim.strand_positions()))
+
+
+def test_sleeping_hair_reuses_its_mesh(long_style):
+    """Asleep, mesh() hands out the same mesh; any awake step makes a new one."""
+    sim = HairSimulator(long_style)
+    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+    while not sim.sleeping:
+        sim.step(DEFAULT_DT)
+    a = sim.mesh()
+    sim.step(DEFAULT_DT)
+    assert sim.mesh() is a
+    assert sim.mesh(viewpoint=[0.8, 0, 0]) is not a
+    sim.set_head_pose(sim.time + DEFAULT_DT, [0.0, 0.0, 0.001], [0, 0, 0, 1])
+    sim.step(DEFAULT_DT)
+    b = sim.mesh()
+    assert b is not a and not np.array_equal(a.vertices, b.vertices)

@@ -16,11 +16,11 @@ VENV = os.path.dirname(os.path.dirname(sys.executable))
 
 
 def test_console_scripts_are_installed_for_the_venv_and_ros2_run():
-    """hair_sim_node and hair_sim_demo are in .venv/bin and <prefix>/lib/hair_sim (ros2 run)."""
+    """hair_sim_node/demo/bench are in .venv/bin and in <prefix>/lib/hair_sim (ros2 run)."""
     from ament_index_python.packages import get_package_prefix
     os.environ.setdefault('AMENT_PREFIX_PATH', VENV)
     prefix = get_package_prefix('hair_sim')
-    for name in ('hair_sim_node', 'hair_sim_demo'):
+    for name in ('hair_sim_node', 'hair_sim_demo', 'hair_sim_bench'):
         for d in (os.path.join(VENV, 'bin'), os.path.join(prefix, 'lib', 'hair_sim')):
             path = os.path.join(d, name)
             assert os.path.isfile(path) and os.access(path, os.X_OK), path

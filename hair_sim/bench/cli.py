@@ -1,0 +1,55 @@
+"""
+hair_sim_bench: benchmarks that print JSON and write PNG plots.
+
+    hair_sim_bench accuracy [--json] [--quick] [--plots DIR]   work-precision
+    hair_sim_bench scale    [--json] [--quick] [--plots DIR]   cost against strips
+    hair_sim_bench skip     [--json] [--quick]                 features on and off
+    hair_sim_bench stress   [--json] [--quick] [--plots DIR]   stability under abuse
+"""
+
+import argparse
+import json
+import os
+import sys
+
+from hair_sim.bench.common import clean, emit
+
+
+def main(argv=None):
+    """Run one benchmark command; stress exits 1 if a promised case failed."""
+    parser = argparse.ArgumentParser(prog='hair_sim_bench', description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress'])
+    parser.add_argument('--json', action='store_true', help='print JSON on stdout')
+    parser.add_argument('--quick', action='store_true', help='a short run (under a minute)')
+    parser.add_argument('--plots', default='bench_out', help='directory for PNG plots')
+    args = parser.parse_args(argv)
+    os.environ.setdefault('NUMBA_NUM_THREADS', '1')
+    if args.command == 'accuracy':
+        from hair_sim.bench import accuracy
+        emit(accuracy.run(args.quick, args.plots), args.json, 'accuracy')
+    elif args.command == 'scale':
+        from hair_sim.bench import scale
+        emit(scale.run(args.quick, args.plots), args.json, 'scale')
+    elif args.command == 'skip':
+        from hair_sim.bench import skip
+        emit(skip.run(args.quick), args.json, 'skip')
+    else:
+        from hair_sim.bench import stress
+        records, smap, failed = stress.run(args.quick, args.plots)
+        if args.json:
+            print(json.dumps(clean({'cases': records, 'stability_map': smap,
+                                    'promised_failures': len(failed)}), indent=1))
+        else:
+            emit(records, False, 'stress')
+            emit(smap, False, 'stability map')
+        if failed:
+            print('stress: %d promised case(s) failed: %s' % (len(failed), ', '.join(
+                '%s/%s/dt=1/%d' % (r['case'], r['integrator'], round(1 / r['dt']))
+                for r in failed)), file=sys.stderr)
+            return 1
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

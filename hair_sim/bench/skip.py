@@ -1,0 +1,95 @@
+"""
+hair_sim_bench skip: what a scene does not need must cost (almost) nothing.
+
+The cost of one frame (the default substeps and the U-shape mesh) with each feature on and
+off: sleeping against awake, culling from a front viewpoint against none, wind, inter-strip
+springs, and the collision broad phase (far spheres skipped against every sphere tested).
+"""
+
+import time
+
+import numpy as np
+
+from hair_sim import load_hairstyle, paths
+from hair_sim.bench.common import progress
+from hair_sim.physics.scripts import demo
+from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator
+
+SUBSTEPS = int(round(1.0 / (60 * DEFAULT_DT)))
+FRONT = [0.8, 0.0, 0.0]
+
+
+def _frame_ms(sim, frames, moving=True, viewpoint=None):
+    """Median ms of frames: SUBSTEPS steps (with the demo motion if moving) and a mesh."""
+    times = []
+    for f in range(frames + 2):
+        t0 = time.perf_counter()
+        for _ in range(SUBSTEPS):
+            t = sim.time + DEFAULT_DT
+            if moving:
+                sim.set_head_pose(t, *demo(t))
+            sim.step(DEFAULT_DT)
+        sim.mesh(viewpoint=viewpoint)
+        if f >= 2:
+            times.append(time.perf_counter() - t0)
+    return 1e3 * float(np.median(times))
+
+
+def _sim(style, **params):
+    sim = HairSimulator(style, **params)
+    sim.set_head_pose(0.0, *demo(0.0))
+    return sim
+
+
+def feature_records(style, frames):
+    """Return on/off frame costs of every skippable feature on one style."""
+    out = []
+    name = '%s (%d strips)' % (style.name, style.n_strips)
+
+    def rec(feature, on_ms, off_ms, note):
+        out.append({'style': name, 'feature': feature, 'on_ms': on_ms, 'off_ms': off_ms,
+                    'saving': 1.0 - off_ms / on_ms if on_ms else None, 'note': note})
+
+    awake = _sim(style)
+    awake_ms = _frame_ms(awake, frames)
+    asleep = _sim(style)
+    while not asleep.sleeping and asleep.time < 5.0:
+        asleep.step(DEFAULT_DT)
+    asleep_ms = _frame_ms(asleep, frames, moving=False)
+    rec('sleeping (a whole frame: steps and mesh)', awake_ms, asleep_ms,
+        'asleep, a step compares a few inputs and the mesh of the unchanged state is reused'
+        + ('' if asleep.sleeping else ' (did not fall asleep!)'))
+    rec('culling from the front (building the mesh)', _mesh_ms(asleep, frames),
+        _mesh_ms(asleep, frames, FRONT), 'strips drawn %d of %d; the culled ones are not sent '
+        'to meshcat either' % (asleep.mesh(viewpoint=FRONT).n_strips, style.n_strips))
+    windy = _sim(style)
+    windy.set_wind([3.0, 1.0, 0.0], turbulence=0.5, seed=3)
+    rec('wind', _frame_ms(windy, frames), awake_ms, 'off: no drag evaluated')
+    rec('inter-strip springs', awake_ms, _frame_ms(_sim(style, inter_strip=False), frames),
+        'off: the thesis fig. 5.1c')
+    no_broad = _sim(style)
+    no_broad.broad_phase = False
+    rec('collision broad phase', _frame_ms(no_broad, frames), awake_ms,
+        'on: spheres a strand cannot reach are skipped')
+    return out
+
+
+def _mesh_ms(sim, frames, viewpoint=None):
+    """Mean ms of building the mesh afresh (the state cache is bypassed)."""
+    r = sim.renderer()
+    R, p = sim.head_pose
+    r.mesh(sim.pos, R, p, viewpoint)
+    t0 = time.perf_counter()
+    for _ in range(frames):
+        r.mesh(sim.pos, R, p, viewpoint)
+    return 1e3 * (time.perf_counter() - t0) / frames
+
+
+def run(quick=False, plot_dir=None):
+    """Measure the sample style and the 1000-strip style (200 strips with --quick)."""
+    base = load_hairstyle(paths.shipped_style('thesis_long'))
+    styles = [base, base.with_strip_count(200 if quick else 1000)]
+    records = []
+    for style in progress(styles, 'skip'):
+        records += feature_records(style, 5 if quick else 30)
+    return records

@@ -1,0 +1,65 @@
+"""hair_sim_bench --quick: every command runs and prints JSON of the documented shape."""
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+BENCH = os.path.join(os.path.dirname(sys.executable), 'hair_sim_bench')
+
+
+def bench(command, tmp_path):
+    """Run `hair_sim_bench COMMAND --quick --json`; return (exit code, JSON)."""
+    out = subprocess.run([BENCH, command, '--quick', '--json', '--plots', str(tmp_path)],
+                         capture_output=True, text=True, timeout=300)
+    assert out.stdout.strip(), out.stderr[-2000:]
+    return out.returncode, json.loads(out.stdout)
+
+
+def test_accuracy_quick(tmp_path):
+    """Records {scenario, integrator, dt, cost, rms, final, stable} and three plots."""
+    rc, records = bench('accuracy', tmp_path)
+    assert rc == 0
+    keys = {'scenario', 'integrator', 'dt', 'cost_s_per_sim_s', 'rms_error_m', 'final_error_m',
+            'stable'}
+    assert all(keys <= set(r) for r in records)
+    assert {r['scenario'] for r in records} == {'pendulum', 'chain', 'hairstyle'}
+    assert {r['integrator'] for r in records} == {'explicit', 'implicit'}
+    for scen in ('pendulum', 'chain', 'hairstyle'):
+        assert os.path.isfile(tmp_path / ('accuracy_%s.png' % scen))
+
+
+def test_scale_quick(tmp_path):
+    """Rows with the documented columns and a plot."""
+    rc, rows = bench('scale', tmp_path)
+    assert rc == 0
+    for r in rows:
+        assert {'strips', 'simulated_vertices', 'rendered_vertices', 'physics_step_ms',
+                'frame_ms', 'marker_bytes_ms', 'meshcat_encode_ms', 'end_to_end_fps',
+                'thesis_fps'} <= set(r)
+    assert rows[0]['rendered_vertices'] > rows[0]['simulated_vertices']
+    assert os.path.isfile(tmp_path / 'scale.png')
+
+
+def test_skip_quick(tmp_path):
+    """One record per feature and style, with on and off costs."""
+    rc, records = bench('skip', tmp_path)
+    assert rc == 0
+    features = {r['feature'] for r in records}
+    assert len(features) == 5 and len({r['style'] for r in records}) == 2
+    assert all(r['on_ms'] is not None and r['off_ms'] is not None for r in records)
+
+
+@pytest.mark.parametrize('command', ['stress'])
+def test_stress_quick(tmp_path, command):
+    """Cases with the documented metrics, a stability map; exit 0: promised cases pass."""
+    rc, data = bench(command, tmp_path)
+    assert rc == 0 and data['promised_failures'] == 0
+    case = data['cases'][0]
+    assert {'case', 'integrator', 'dt', 'promised', 'nan_steps', 'max_penetration_m',
+            'max_length_drift', 'peak_kinetic_energy_j', 'slept', 'woke', 'passed'} <= set(case)
+    assert any(not c['promised'] for c in data['cases'])    # the unstable ones are tried too
+    assert {r['integrator'] for r in data['stability_map']} == {'explicit', 'implicit'}
+    assert os.path.isfile(tmp_path / 'stability_map.png')

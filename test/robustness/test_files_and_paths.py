@@ -1,0 +1,94 @@
+"""Hairstyle files and paths through the node's services: bad ones refused, nothing lost."""
+
+import os
+import subprocess
+import sys
+
+import yaml
+
+from hair_sim import paths
+from hair_sim.modeling import load_hairstyle
+from helpers.ros import spin_until
+
+HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def call(ex, client, srv, name, req):
+    """Call a service of the node and wait for the answer."""
+    cli = client.create_client(srv, name)
+    assert cli.wait_for_service(timeout_sec=10.0)
+    fut = cli.call_async(req)
+    assert spin_until(ex, fut.done, 30.0)
+    return fut.result()
+
+
+def test_bad_files_are_refused_and_the_style_keeps_running(node_env, tmp_path):
+    """Malformed, wrong schema, truncated, 100 MB, mismatched, NaN: success false, message."""
+    from hair_sim_msgs.srv import LoadHairstyle
+    _, ex, node, client = node_env
+    good = open(paths.shipped_style('bob_fringe')).read()
+    data = yaml.safe_load(good)
+    mismatched = yaml.safe_load(good)
+    mismatched['patches'][0]['control_hairs'][1].pop()
+    nan = yaml.safe_load(good)
+    nan['patches'][0]['control_hairs'][2][3][1] = float('nan')
+    files = {
+        'malformed.yaml': 'patches: [ {name: a, control_hairs: [[[0, 0',
+        'schema.yaml': yaml.safe_dump({'name': 'x', 'patches': 'not a list'}),
+        'truncated.yaml': good[:len(good) // 3],
+        'mismatched.yaml': yaml.safe_dump(mismatched),
+        'nan.yaml': yaml.safe_dump(nan),
+        'unsafe.yaml': '!!python/object/apply:os.system ["touch %s/pwned"]' % tmp_path,
+    }
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    with open(tmp_path / 'huge.yaml', 'wb') as f:
+        f.write(b'name: huge\n' + b'#' * (100 * 2 ** 20) + b'\n')
+    before = node.sim.style.name
+    for name in list(files) + ['huge.yaml']:
+        r = call(ex, client, LoadHairstyle, '/hair_sim/load_hairstyle',
+                 LoadHairstyle.Request(path=name))
+        assert not r.success and r.message, name
+        assert node.sim.style.name == before
+    assert not (tmp_path / 'pwned').exists()
+    assert len(data['patches']) == 2
+    node.sim.step(1 / 240)
+    assert node.sim.style.name == before
+
+
+def test_paths_stay_inside_the_hairstyle_directories(node_env, tmp_path):
+    """'..', absolute paths elsewhere and symlinks leading out are refused for load and save."""
+    from hair_sim_msgs.srv import LoadHairstyle, SaveHairstyle
+    _, ex, node, client = node_env
+    outside = tmp_path.parent / ('outside_%s' % tmp_path.name)
+    outside.mkdir()
+    (outside / 'secret.yaml').write_text(open(paths.shipped_style('bob_fringe')).read())
+    os.symlink(outside / 'secret.yaml', tmp_path / 'link.yaml')
+    os.symlink(outside, tmp_path / 'linkdir')
+    for p in ('../%s/secret.yaml' % outside.name, str(outside / 'secret.yaml'), 'link.yaml',
+              'linkdir/secret.yaml', '/etc/passwd', ''):
+        r = call(ex, client, LoadHairstyle, '/hair_sim/load_hairstyle',
+                 LoadHairstyle.Request(path=p))
+        assert not r.success, p
+        r = call(ex, client, SaveHairstyle, '/hair_sim/save_hairstyle',
+                 SaveHairstyle.Request(path=p or 'x/../y.yaml'))
+        assert not r.success, p
+    assert sorted(os.listdir(outside)) == ['secret.yaml']
+    r = call(ex, client, SaveHairstyle, '/hair_sim/save_hairstyle',
+             SaveHairstyle.Request(path='inside.yaml'))
+    assert r.success and (tmp_path / 'inside.yaml').is_file()
+
+
+def test_a_save_killed_mid_write_leaves_the_previous_file(tmp_path):
+    """A process killed while saving (before its rename) leaves the old file whole."""
+    target = tmp_path / 'style.yaml'
+    target.write_text(open(paths.shipped_style('bob_fringe')).read())
+    before = target.read_bytes()
+    proc = subprocess.Popen([sys.executable, os.path.join(HERE, 'helpers', 'slow_save.py'),
+                             paths.shipped_style('thesis_long'), str(target)],
+                            stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == 'writing'
+    proc.kill()
+    proc.wait(timeout=10)
+    assert target.read_bytes() == before
+    assert load_hairstyle(str(target)).name == 'bob_fringe'
