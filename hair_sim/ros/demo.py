@@ -28,8 +28,8 @@ from hair_sim.ros.node import HairSimNode
 class HeadDriver(Node):
     """Publish the scripted demo head motion at 100 Hz and a gust every few seconds."""
 
-    def __init__(self, frame='world'):
-        super().__init__('hair_sim_demo_driver')
+    def __init__(self, frame='world', **kwargs):
+        super().__init__('hair_sim_demo_driver', **kwargs)
         self.frame = frame
         self.pose_pub = self.create_publisher(PoseStamped, 'head_pose', qos_profile_sensor_data)
         self.wind_pub = self.create_publisher(Wind, 'wind', 10)

@@ -1,8 +1,10 @@
 """hair_sim_node: head pose and wind in, hair markers, meshes and state out."""
 
+from collections import deque
 import math
 import os
 import sys
+import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
@@ -71,6 +73,7 @@ class HairSimNode(Node):
         self._acc = 0.0
         self.meshcat = None
         self.meshcat_url = None
+        self.publish_ms = deque(maxlen=2000)         # recent publish callback durations
 
         self.create_subscription(PoseStamped, 'head_pose', self._on_pose,
                                  qos_profile_sensor_data)
@@ -211,6 +214,11 @@ class HairSimNode(Node):
 
     # -------------------------------------------------------------- outputs
     def _on_publish(self):
+        t0 = time.perf_counter()
+        self._publish()
+        self.publish_ms.append(1e3 * (time.perf_counter() - t0))
+
+    def _publish(self):
         sim = self.sim
         viewpoint = self._p('viewpoint') if self._p('use_viewpoint') else None
         mesh = sim.mesh(viewpoint=viewpoint)
@@ -250,6 +258,8 @@ class HairSimNode(Node):
         values.update({k: str(v) for k, v in self.counts.items()})
         values.update({'pose_' + k: str(v) for k, v in sim.motion.counts.items()})
         values.update({k: str(v) for k, v in sim.counters.items()})
+        if self.publish_ms:
+            values['publish_ms_median'] = '%.3f' % float(np.median(self.publish_ms))
         if self.meshcat is not None:
             values['meshcat_connected'] = str(self.meshcat.connected)
             values['meshcat_frames'] = str(self.meshcat.frames_sent)

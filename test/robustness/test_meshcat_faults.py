@@ -1,0 +1,115 @@
+"""The meshcat server missing, killed or silent: logged, ROS goes on, reconnection follows."""
+
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+import zmq
+
+from helpers.ros import spin_until
+
+
+def free_port():
+    """Return a free TCP port on loopback."""
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return s.getsockname()[1]
+
+
+def start_meshcat(zmq_url):
+    """Start a meshcat server on zmq_url; return the process once it listens."""
+    proc = subprocess.Popen([sys.executable, '-u', '-m', 'meshcat.servers.zmqserver',
+                             '--zmq-url', zmq_url], stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + 20
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline().decode()
+        if 'http' in line and 'zmq' not in line:
+            break
+    threading.Thread(target=lambda: [None for _ in proc.stdout], daemon=True).start()
+    return proc
+
+
+@pytest.fixture
+def meshcat_node(tmp_path):
+    """Yield (executor, node, states list, zmq url) of a node whose meshcat is not there."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from hair_sim_msgs.msg import HairState
+    from hair_sim.ros.node import HairSimNode
+    url = 'tcp://127.0.0.1:%d' % free_port()
+    ctx = Context()
+    rclpy.init(context=ctx, args=['--ros-args', '-p', 'meshcat.enabled:=true',
+                                  '-p', 'meshcat.zmq_url:=%s' % url, '-p', 'publish_rate:=20.0'])
+    node = HairSimNode(context=ctx)
+    client = rclpy.create_node('meshcat_fault_probe', context=ctx)
+    states = []
+    client.create_subscription(HairState, 'hair_state', lambda m: states.append(time.time()), 50)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    ex.add_node(client)
+    try:
+        yield ex, node, states, url
+    finally:
+        ex.shutdown()
+        node.destroy_node()
+        client.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+
+def published_during(ex, states, seconds):
+    """Spin for `seconds`; return how many HairState messages arrived meanwhile."""
+    n0 = len(states)
+    spin_until(ex, lambda: False, seconds)
+    return len(states) - n0
+
+
+def test_missing_then_killed_then_back(meshcat_node):
+    """No server: errors, ROS at rate. Server up: frames. Killed: ROS on. Back: reconnects."""
+    ex, node, states, url = meshcat_node
+    assert published_during(ex, states, 5.0) >= 50            # 20 Hz for 5 s, minus start-up
+    assert node.meshcat.errors >= 1 and not node.meshcat.connected
+    server = start_meshcat(url)
+    try:
+        assert spin_until(ex, lambda: node.meshcat.frames_sent > 5, 20.0)
+        assert node.meshcat_url and node.meshcat.connected
+    finally:
+        server.kill()
+        server.wait()
+    errors = node.meshcat.errors
+    assert published_during(ex, states, 6.0) >= 80             # ROS does not wait
+    assert node.meshcat.errors > errors
+    server = start_meshcat(url)
+    try:
+        sent = node.meshcat.frames_sent
+        assert spin_until(ex, lambda: node.meshcat.frames_sent > sent + 5, 20.0)
+    finally:
+        server.kill()
+        server.wait()
+
+
+def test_a_silent_server_does_not_stall_ros(meshcat_node):
+    """A server that takes requests and never answers: time-outs, ROS keeps its rate."""
+    ex, node, states, url = meshcat_node
+    ctx = zmq.Context.instance()
+    sock = ctx.socket(zmq.REP)
+    sock.bind(url)
+    stop = threading.Event()
+
+    def swallow():
+        while not stop.is_set():
+            if sock.poll(100):
+                sock.recv_multipart()                           # and never reply
+    t = threading.Thread(target=swallow, daemon=True)
+    t.start()
+    try:
+        assert published_during(ex, states, 8.0) >= 120
+        assert node.meshcat.errors >= 1 and node.meshcat.frames_sent == 0
+    finally:
+        stop.set()
+        t.join()
+        sock.close(linger=0)
