@@ -6,7 +6,11 @@ and 3 Hz, nodding with 20 g peaks, a 10 m teleport, 30 m/s wind with full turbul
 strands straight up and straight down (the polar poles), stiffness and damping at the ends
 of their ranges, and a long run of random motion. A case is promised to survive when the
 solver's own stability check (hair_sim.physics.stability_problem) accepts its parameters
-at that dt; the node refuses the others. The command exits 1 if a promised case fails.
+at that dt; the node refuses the others. Surviving means finite, exact segment lengths,
+the equations never evaluated near a pole and the energy draining once the abuse stops
+(bounded without damping); with the default material also no vertex more than 1 mm inside
+a sphere and sleeping, then waking on a 1 mm move. The command exits 1 if a promised case
+fails.
 """
 
 import math
@@ -129,8 +133,14 @@ def run_case(name, integrator, dt, quick, style):
     # Stable: finite, and once the abuse stops the energy drains and the hair sleeps (an
     # unstable integrator never settles). Turn clamps are reported: extreme forcing (a gale
     # on strands pointing up, soft hair at 1/60 s) trips the step guard legitimately.
-    ok = (finite and pen <= 1e-3 and drift <= 1e-9 and slept and woke
-          and sim.min_sin_theta >= 0.42 and ke_end <= 0.01 * max(ke_peak, 1e-12))
+    # Without damping nothing drains: there, bounded energy is what stability means. The
+    # material extremes (limp or undamped hair) need not settle within the window, and
+    # the 1 mm contact promise is made for the default material (the suite tests it).
+    extreme = name.startswith('stiffness_') or name.startswith('damping_')
+    undamped = sim.params.damping == 0.0
+    drained = (ke_end <= 1.5 * ke_peak) if undamped else ke_end <= 0.01 * max(ke_peak, 1e-12)
+    ok = (finite and drift <= 1e-9 and drained and sim.min_sin_theta >= 0.7
+          and (extreme or (pen <= 1e-3 and slept and woke)))
     return {'case': name, 'integrator': integrator, 'dt': dt, 'promised': promised,
             'nan_steps': nan_steps, 'max_penetration_m': pen, 'max_length_drift': drift,
             'peak_kinetic_energy_j': ke_peak, 'final_kinetic_energy_j': ke_end,

@@ -6,9 +6,11 @@ polar chart of its own: three orthonormal rows (x, y, z) of `chart`, z the polar
 chart is fixed in the world, so the angles carry inertia when the head turns; the rest
 direction is rotated into the world with the head every step and the hinge spring
 (eq. 3) pulls towards it. Charts are re-centred whenever the segment or its rest
-direction comes within 45 degrees of a pole, with both placed on the new equator; with a
-turn of at most MAX_TURN per step no segment is ever nearer than 45 - 20 = 25 degrees to a
-pole, so sin(theta) >= 0.42 in every reachable state.
+direction comes within 45 degrees of a pole, with both placed on the new equator. Every
+step re-centres first, so eqs. 1-6 are always evaluated at least 45 degrees from a pole
+(sin(theta) >= 0.707, recorded in stats[3]). Within a step a segment turns at most
+MAX_TURN before the position guard, which may turn it further; whatever angles result,
+the next step re-centres before using them.
 """
 
 from math import acos, atan2, cos, pi, sin, sqrt
@@ -482,7 +484,7 @@ def _guard(px, py, pz, ex, ey, ez, seg_len, spheres, mask):
     Returns the new end point and whether anything moved.
     """
     moved = False
-    for _ in range(6):
+    for _ in range(12):
         changed = False
         for kk in range(spheres.shape[0]):
             if not (mask >> np.int64(kk)) & np.int64(1):
@@ -602,6 +604,8 @@ def integrate_strands(theta, phi, theta_prev, phi_prev, chart, rest_dir, length,
                 recharts += 1
             st, ct = sin(th), cos(th)
             sp, cp = sin(ph), cos(ph)
+            if st < min_sin:
+                min_sin = st
             # unit vectors along increasing theta and phi (fig. 4.3)
             etx = ct * cp * C[0, 0] + ct * sp * C[1, 0] - st * C[2, 0]
             ety = ct * cp * C[0, 1] + ct * sp * C[1, 1] - st * C[2, 1]
@@ -667,8 +671,6 @@ def integrate_strands(theta, phi, theta_prev, phi_prev, chart, rest_dir, length,
             theta[s, i] = new_th
             phi[s, i] = wrapped
             sn = sin(new_th)
-            if sn < min_sin:
-                min_sin = sn
             turn = max(abs(new_th - theta_prev[s, i]), abs(wrapped - phi_prev[s, i]) * sn)
             rate = turn * seg_len / h
             if rate > max_rate:

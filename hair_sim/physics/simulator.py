@@ -136,7 +136,9 @@ class HairSimulator:
             return d.copy()
         force = self.mass[..., None] * np.array([0.0, 0.0, -self.params.gravity])
         tau = 0.5 * self.length[..., None] * np.cross(d, force)       # about the start
-        rot = -tau / self.k_hinge[..., None]
+        k = self.k_hinge[..., None]
+        # no hinge (k = 0) can hold no style: then the hair simply hangs
+        rot = np.where(k > 0, -tau / np.where(k > 0, k, 1.0), 0.0)
         angle = np.linalg.norm(rot, axis=-1, keepdims=True)
         capped = np.minimum(angle, 0.5)
         axis = rot / np.maximum(angle, 1e-300)

@@ -92,7 +92,7 @@ def test_ten_seconds_of_violent_motion_stay_finite_and_bounded(path, integrator)
 
 
 def test_strands_at_the_poles_stay_away_from_the_singularity():
-    """Strands straight up and straight down, shaken hard: sin(theta) stays >= 0.42."""
+    """Strands straight up and down, shaken hard: eq. 1 is never evaluated near a pole."""
     head = load_head(os.path.join(paths.heads_dir(), 'default_adult.yaml'))
     z = np.linspace(0, 0.2, 6)[:, None]
     up = np.array([0.0, 0.0, 0.3]) + z * [0, 0, 1]
@@ -101,7 +101,7 @@ def test_strands_at_the_poles_stay_away_from_the_singularity():
     sim.set_wind([0.0, 20.0, 5.0], turbulence=1.0, seed=1)
     drive(sim, violent, 0.0, 4.0, DEFAULT_DT)
     assert sim.counters['recharts'] > 0
-    assert sim.min_sin_theta >= 0.42
+    assert sim.min_sin_theta >= np.sin(np.pi / 4) - 1e-12
     assert np.all(np.isfinite(sim.strand_positions()))
 
 
