@@ -29,25 +29,11 @@ def ros_context():
 @pytest.fixture
 def node_env(tmp_path):
     """Yield (context, executor, node, client node) with the shipped params file loaded."""
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
+    from helpers.ros import RunningNode
 
-    from hair_sim.ros.node import HairSimNode
-
-    ctx = Context()
     params = os.path.join(paths.config_dir(), 'hair_sim.yaml')
-    rclpy.init(context=ctx, args=['--ros-args', '--params-file', params,
-                                  '-p', 'hairstyle_dirs:=["", "%s"]' % tmp_path])
-    node = HairSimNode(context=ctx)
-    client = rclpy.create_node('hair_sim_test_client', context=ctx)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
-    ex.add_node(client)
+    run = RunningNode(['--params-file', params, '-p', 'hairstyle_dirs:=["", "%s"]' % tmp_path])
     try:
-        yield ctx, ex, node, client
+        yield run.context, run.executor, run.node, run.client
     finally:
-        ex.shutdown()
-        node.destroy_node()
-        client.destroy_node()
-        rclpy.try_shutdown(context=ctx)
+        run.close()

@@ -1,21 +1,9 @@
 """Coverage of the scalp by the U-shape (64 viewpoints) and conservative visibility culling."""
 
 import numpy as np
-import pytest
 
-from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, paths
 from hair_sim.render.coverage import coverage, hair_region_samples
 from hair_sim.render.raster import Camera, fibonacci_sphere, visible_strip_ids
-
-
-@pytest.fixture(scope='module')
-def settled():
-    """Return the sample style's simulator, settled at rest."""
-    sim = HairSimulator(load_hairstyle(paths.shipped_style('thesis_long')))
-    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
-    while not sim.sleeping:
-        sim.step(DEFAULT_DT)
-    return sim
 
 
 def test_ushape_with_sphere_centre_covers_the_scalp(settled, capsys):

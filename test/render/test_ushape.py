@@ -1,20 +1,8 @@
 """U-shape strips (thesis 3.1, 3.2): projections, fix-ups, winding, UVs and counts."""
 
 import numpy as np
-import pytest
 
-from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, paths
 from hair_sim.render import mesh as mesh_mod, ushape
-
-
-@pytest.fixture(scope='module')
-def settled():
-    """Return the sample style's simulator, settled at rest with the head upright."""
-    sim = HairSimulator(load_hairstyle(paths.shipped_style('thesis_long')))
-    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
-    while not sim.sleeping:
-        sim.step(DEFAULT_DT)
-    return sim
 
 
 def walls_of(renderer, k):

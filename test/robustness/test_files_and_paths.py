@@ -8,18 +8,9 @@ import yaml
 
 from hair_sim import paths
 from hair_sim.modeling import load_hairstyle
-from helpers.ros import spin_until
+from helpers.ros import call_service as call
 
 HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def call(ex, client, srv, name, req):
-    """Call a service of the node and wait for the answer."""
-    cli = client.create_client(srv, name)
-    assert cli.wait_for_service(timeout_sec=10.0)
-    fut = cli.call_async(req)
-    assert spin_until(ex, fut.done, 30.0)
-    return fut.result()
 
 
 def test_bad_files_are_refused_and_the_style_keeps_running(node_env, tmp_path):

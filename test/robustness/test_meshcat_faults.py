@@ -34,31 +34,20 @@ def start_meshcat(zmq_url):
 
 
 @pytest.fixture
-def meshcat_node(tmp_path):
+def meshcat_node():
     """Yield (executor, node, states list, zmq url) of a node whose meshcat is not there."""
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
     from hair_sim_msgs.msg import HairState
-    from hair_sim.ros.node import HairSimNode
+    from helpers.ros import RunningNode
     url = 'tcp://127.0.0.1:%d' % free_port()
-    ctx = Context()
-    rclpy.init(context=ctx, args=['--ros-args', '-p', 'meshcat.enabled:=true',
-                                  '-p', 'meshcat.zmq_url:=%s' % url, '-p', 'publish_rate:=20.0'])
-    node = HairSimNode(context=ctx)
-    client = rclpy.create_node('meshcat_fault_probe', context=ctx)
+    run = RunningNode(['-p', 'meshcat.enabled:=true', '-p', 'meshcat.zmq_url:=%s' % url,
+                       '-p', 'publish_rate:=20.0'])
     states = []
-    client.create_subscription(HairState, 'hair_state', lambda m: states.append(time.time()), 50)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
-    ex.add_node(client)
+    run.client.create_subscription(HairState, 'hair_state',
+                                   lambda m: states.append(time.time()), 50)
     try:
-        yield ex, node, states, url
+        yield run.executor, run.node, states, url
     finally:
-        ex.shutdown()
-        node.destroy_node()
-        client.destroy_node()
-        rclpy.try_shutdown(context=ctx)
+        run.close()
 
 
 def published_during(ex, states, seconds):

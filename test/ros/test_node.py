@@ -9,7 +9,7 @@ from rclpy.parameter import Parameter
 
 from hair_sim import paths
 from hair_sim.modeling import load_hairstyle
-from helpers.ros import spin_until
+from helpers.ros import call_service as call, spin_until
 
 HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 VENV = os.path.dirname(os.path.dirname(sys.executable))
@@ -24,15 +24,6 @@ def test_console_scripts_are_installed_for_the_venv_and_ros2_run():
         for d in (os.path.join(VENV, 'bin'), os.path.join(prefix, 'lib', 'hair_sim')):
             path = os.path.join(d, name)
             assert os.path.isfile(path) and os.access(path, os.X_OK), path
-
-
-def call(ex, client, srv_type, name, request):
-    """Call a service and spin until the answer comes."""
-    cli = client.create_client(srv_type, name)
-    assert cli.wait_for_service(timeout_sec=10.0)
-    future = cli.call_async(request)
-    assert spin_until(ex, future.done, 20.0)
-    return future.result()
 
 
 def test_poses_from_another_process_move_the_published_hair(node_env):

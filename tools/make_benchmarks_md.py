@@ -1,0 +1,168 @@
+"""
+Write BENCHMARKS.md from the JSON and plots of a full benchmark run in doc/bench/.
+
+    for c in accuracy scale skip stress; do
+        .venv/bin/hair_sim_bench $c --json --plots doc/bench > doc/bench/$c.json; done
+    .venv/bin/python tools/make_benchmarks_md.py
+"""
+
+import json
+import os
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BENCH = os.path.join(ROOT, 'doc', 'bench')
+
+
+def load(name):
+    """Load doc/bench/<name>.json."""
+    with open(os.path.join(BENCH, name + '.json')) as f:
+        return json.load(f)
+
+
+def fmt(v, digits=3):
+    """Format a number compactly (None as a dash)."""
+    if v is None:
+        return '-'
+    if isinstance(v, bool):
+        return 'yes' if v else 'no'
+    if isinstance(v, float):
+        return '%.*g' % (digits, v)
+    return str(v)
+
+
+def table(rows, cols):
+    """Return a Markdown table of rows (dicts) with (key, header) columns."""
+    out = ['| ' + ' | '.join(h for _, h in cols) + ' |', '|' + ' --- |' * len(cols)]
+    for r in rows:
+        out.append('| ' + ' | '.join(fmt(r.get(k)) for k, _ in cols) + ' |')
+    return '\n'.join(out)
+
+
+def reach_1mm(acc, integ):
+    """Return the largest dt at which an integrator is within 1 mm RMS on scenario 3."""
+    ok = [r['dt'] for r in acc if r['scenario'] == 'hairstyle' and r['integrator'] == integ
+          and r['stable'] and r['rms_error_m'] is not None and r['rms_error_m'] <= 1e-3]
+    return '1/%d s' % round(1 / max(ok)) if ok else 'none of the tested steps'
+
+
+def main():
+    """Write BENCHMARKS.md."""
+    acc = load('accuracy')
+    for r in acc:
+        r['step'] = '1/%d' % round(1 / r['dt'])
+    scale = load('scale')
+    skip = load('skip')
+    stress = load('stress')
+    chain = [r['rms_error_m'] for r in acc if r['scenario'] == 'chain' and r['stable']]
+    parts = ['# Benchmarks', '', 'One full run on this machine kind (2 cores; the scale '
+             'rows use one). Regenerate with the commands at the top of '
+             '`tools/make_benchmarks_md.py`.', '']
+    parts += ['## Accuracy: run time against error (`hair_sim_bench accuracy --json`)', '',
+              'Cost is CPU seconds per simulated second; errors are RMS and final vertex '
+              'position errors in metres.', '']
+    for scen, title in (('pendulum', '1. Single segment with hinge spring, released from '
+                         '0.3 rad, against the exact ODE (scipy DOP853, rtol 1e-10)'),
+                        ('chain', '2. Ten 3 cm segments released from horizontal, against '
+                         'an exact articulated chain (Lagrangian, scipy)'),
+                        ('hairstyle', '3. thesis_long under the demo head motion and wind, '
+                         'against the same solver at 1/24000 s')):
+        rows = [r for r in acc if r['scenario'] == scen]
+        parts += ['### ' + title, '', table(rows, [('integrator', 'integrator'),
+                                                   ('step', 'dt (s)'),
+                                                   ('cost_s_per_sim_s', 'cost'),
+                                                   ('rms_error_m', 'RMS error'),
+                                                   ('final_error_m', 'final error'),
+                                                   ('stable', 'stable')]),
+                  '', '![](doc/bench/accuracy_%s.png)' % scen, '']
+    parts += ['**Reading.** Both integrators converge on the pendulum (the model is exact '
+              'there): second order for the explicit eq. 6, with a smaller constant for the '
+              'implicit one, which stays stable at 1/60 s where eq. 6 does not for stiff '
+              'segments. On the chain the error is %.0f-%.0f cm RMS at every step size: '
+              'that is the angular-moment model itself. Each segment swings about its start '
+              'as if it were fixed and carries neither the inertia nor the weight of the '
+              'segments below it, so a strand falls and swings far faster than a real '
+              'chain. The model is a look, not a mechanics: it is right for small motions '
+              'about a styled rest shape, not for hair released from far away. On the sample '
+              'style the explicit integrator reaches 1 mm RMS at %s and the implicit one at '
+              '%s; at the default 1/240 s both are within about 3 mm of the converged '
+              'solution, and the implicit one stays stable (about 6 mm) at one step per '
+              '60 Hz frame.' % (100 * min(chain), 100 * max(chain), reach_1mm(acc, 'explicit'),
+                                reach_1mm(acc, 'implicit')), '']
+    parts += ['## Scale against the thesis (`hair_sim_bench scale --json`)', '',
+              'Styles are thesis_long refined to n strips; 4 solver steps per 60 Hz frame. '
+              'End to end = 4 physics steps + U-shape mesh + marker bytes (meshcat encodes '
+              'on its own thread).', '',
+              table(scale, [('strips', 'strips'), ('simulated_vertices', 'sim. vertices'),
+                            ('rendered_vertices', 'drawn vertices'),
+                            ('physics_step_ms', 'step ms'), ('frame_ms', 'U-shape ms'),
+                            ('marker_bytes_ms', 'markers ms'),
+                            ('meshcat_encode_ms', 'meshcat ms'),
+                            ('end_to_end_fps', 'fps end to end'),
+                            ('thesis_fps', 'thesis fps (2003)')]),
+              '', '![](doc/bench/scale.png)', '']
+    r180 = next(r for r in scale if r['strips'] == 180)
+    r1000 = next((r for r in scale if r['strips'] == 1000), None)
+    parts += ['**Reading.** Cost is linear in strips. At 180 strips the frame takes %.2f ms '
+              '(%.0f fps, %.1fx the thesis\' 41 fps): %.0f %% physics (4 x %.2f ms), %.0f %% '
+              'U-shape, %.0f %% marker bytes. The targets (410 fps at 180 strips, 60 fps at '
+              '1000) are missed: the physics step costs about 0.25 us per segment, most of it '
+              'in the integration kernel (trigonometry of the polar charts, the rest angles '
+              'recomputed every step as the head turns) and the inter-strip springs; the '
+              'Python around a step is another ~0.1 ms. %s'
+              % (r180['end_to_end_ms'], r180['end_to_end_fps'], r180['end_to_end_fps'] / 41,
+                 100 * 4 * r180['physics_step_ms'] / r180['end_to_end_ms'],
+                 r180['physics_step_ms'],
+                 100 * r180['frame_ms'] / r180['end_to_end_ms'],
+                 100 * r180['marker_bytes_ms'] / r180['end_to_end_ms'],
+                 ('At 1000 strips: %.0f fps.' % r1000['end_to_end_fps']) if r1000 else ''), '']
+    parts += ['## What a scene does not need (`hair_sim_bench skip --json`)', '',
+              table(skip, [('style', 'style'), ('feature', 'feature'), ('on_ms', 'on ms'),
+                           ('off_ms', 'off ms'), ('saving', 'saving'), ('note', 'note')]),
+              '', '**Reading.** Sleeping hair costs almost nothing: a step compares a few '
+              'inputs and the mesh of the unchanged state is reused. The broad phase and '
+              'switching off the inter-strip springs or the wind save what they compute. '
+              'Culling from the front skips the hidden strips (about a third of the sample '
+              'style), but proving a strip hidden costs about as much as building its '
+              'U-shape (a few microseconds), so it saves little CPU here; what it saves is '
+              'downstream: triangles sent to meshcat and drawn.', '']
+    cases = stress['cases']
+    parts += ['## Numerical stability under abuse (`hair_sim_bench stress --json`)', '',
+              'Promised: the solver\'s own stability check accepts the parameters at that '
+              'dt (the node refuses the others). Passed: finite, exact lengths, eq. 1 never '
+              'evaluated near a pole, energy draining after the abuse (bounded without '
+              'damping); for the default material also penetration <= 1 mm and sleeping, '
+              'then waking on a 1 mm move. %d promised case(s) failed.'
+              % stress['promised_failures'], '']
+    for r in cases:
+        r['step'] = '1/%d' % round(1 / r['dt'])
+    parts += [table(cases, [('case', 'case'), ('integrator', 'integrator'), ('step', 'dt'),
+                            ('promised', 'promised'), ('passed', 'passed'),
+                            ('nan_steps', 'NaN'), ('max_penetration_m', 'max pen. (m)'),
+                            ('max_length_drift', 'length drift'),
+                            ('peak_kinetic_energy_j', 'peak KE (J)'),
+                            ('final_kinetic_energy_j', 'final KE (J)'),
+                            ('turn_clamps', 'turn clamps'), ('min_sin_theta', 'min sin'),
+                            ('slept', 'slept'), ('woke', 'woke')]), '']
+    parts += ['### Stability map: largest stable dt against hinge stiffness', '',
+              table(stress['stability_map'], [('integrator', 'integrator'),
+                                              ('stiffness_scale', 'stiffness scale'),
+                                              ('largest_stable_dt', 'largest stable dt'),
+                                              ('predicted_stable_dt', 'predicted')]),
+              '', '![](doc/bench/stability_map.png)', '',
+              '**Reading.** Eq. 6 needs dt below about 1.8 / omega of its stiffest term: '
+              '1/120 s with the default material, 1/1000 s for hair 100 times stiffer; the '
+              'implicit integrator is stable at one step per 60 Hz frame over the whole '
+              'stiffness range (only the explicit force terms bound it). The predicted limit '
+              '(`stability_problem`, used to refuse parameters) matches the measured one '
+              'on the ladder of tested steps. "-" means the run did not settle within 3 s '
+              'after the motion (very soft hair creeps on the shoulders), not a blow-up. '
+              'Turn clamps count segments whose turn in one step was limited to 0.35 rad: '
+              'unstable runs trip it every step; extreme forcing (a 30 m/s gale, 20 g nods) '
+              'trips it legitimately.', '']
+    with open(os.path.join(ROOT, 'BENCHMARKS.md'), 'w') as f:
+        f.write('\n'.join(parts))
+    print('wrote BENCHMARKS.md')
+
+
+if __name__ == '__main__':
+    main()
