@@ -5,6 +5,7 @@ PY := $(VENV)/bin/python
 BOOT_PYTHON ?= $(shell command -v python3.11 || command -v python3)
 MSG_SRCS := $(shell find msg_defs -type f -not -name '*~')
 
+PIP_VERSION := 26.3
 STAMP_DEPS := $(VENV)/.stamp-deps
 STAMP_MSGS := $(VENV)/.stamp-msgs
 STAMP_PKG := $(VENV)/.stamp-pkg
@@ -16,8 +17,11 @@ setup: $(STAMP_DEPS) $(STAMP_MSGS) $(STAMP_PKG)
 $(PY):
 	$(BOOT_PYTHON) -m venv $(VENV)
 
-# Pinned dependencies; reinstalled only when the requirement files change.
+# Pinned dependencies; reinstalled only when the requirement files change. pip first: the
+# pip that comes with Python 3.11 falls back to `setup.py develop` for this package, which
+# follows setup.cfg's ament script_dir and leaves .venv/bin without the console scripts.
 $(STAMP_DEPS): requirements.txt constraints.txt | $(PY)
+	$(PY) -m pip install --disable-pip-version-check -q "pip==$(PIP_VERSION)"
 	$(PY) -m pip install --disable-pip-version-check -q -r requirements.txt -c constraints.txt
 	touch $@
 

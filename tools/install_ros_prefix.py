@@ -44,7 +44,12 @@ def main(venv):
     scripts = sorted(ep.name for ep in metadata.distribution('hair_sim').entry_points
                      if ep.group == 'console_scripts')
     for name in scripts:
-        _copy_atomic(os.path.join(venv, 'bin', name), os.path.join(dest, name))
+        src = os.path.join(venv, 'bin', name)
+        if not os.path.isfile(src):
+            sys.exit('console script %s is not in %s/bin: was hair_sim installed with a pip '
+                     'that follows setup.cfg\'s [develop] script_dir? (make setup pins pip)'
+                     % (name, venv))
+        _copy_atomic(src, os.path.join(dest, name))
     print('hair_sim registered in the ament prefix %s; ros2 run scripts: %s'
           % (venv, ', '.join(scripts) or '(none yet)'))
 
