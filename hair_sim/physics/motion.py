@@ -149,7 +149,3 @@ class HeadMotion:
                 f = (t - t0) / (t1 - t0)
                 return p0 + f * (p1 - p0), slerp(q0, q1, f)
         return s[0][2], s[0][3]
-
-    def settled(self, t):
-        """Return True when no sample lies after t (the head is holding its last pose)."""
-        return not self.samples or t >= self.samples[-1][0]
