@@ -38,6 +38,12 @@ def table(rows, cols):
     return '\n'.join(out)
 
 
+def span_cm(values):
+    """Return 'a-b' (or 'a' when they round alike) of values in metres, as cm."""
+    lo, hi = '%.0f' % (100 * min(values)), '%.0f' % (100 * max(values))
+    return lo if lo == hi else '%s-%s' % (lo, hi)
+
+
 def reach_1mm(acc, integ):
     """Return the largest dt at which an integrator is within 1 mm RMS on scenario 3."""
     ok = [r['dt'] for r in acc if r['scenario'] == 'hairstyle' and r['integrator'] == integ
@@ -77,7 +83,7 @@ def main():
     parts += ['**Reading.** Both integrators converge on the pendulum (the model is exact '
               'there): second order for the explicit eq. 6, with a smaller constant for the '
               'implicit one, which stays stable at 1/60 s where eq. 6 does not for stiff '
-              'segments. On the chain the error is %.0f-%.0f cm RMS at every step size: '
+              'segments. On the chain the error is %s cm RMS at every step size: '
               'that is the angular-moment model itself. Each segment swings about its start '
               'as if it were fixed and carries neither the inertia nor the weight of the '
               'segments below it, so a strand falls and swings far faster than a real '
@@ -86,7 +92,7 @@ def main():
               'style the explicit integrator reaches 1 mm RMS at %s and the implicit one at '
               '%s; at the default 1/240 s both are within about 3 mm of the converged '
               'solution, and the implicit one stays stable (about 6 mm) at one step per '
-              '60 Hz frame.' % (100 * min(chain), 100 * max(chain), reach_1mm(acc, 'explicit'),
+              '60 Hz frame.' % (span_cm(chain), reach_1mm(acc, 'explicit'),
                                 reach_1mm(acc, 'implicit')), '']
     parts += ['## Scale against the thesis (`hair_sim_bench scale --json`)', '',
               'Styles are thesis_long refined to n strips; 4 solver steps per 60 Hz frame. '
@@ -102,18 +108,21 @@ def main():
               '', '![](doc/bench/scale.png)', '']
     r180 = next(r for r in scale if r['strips'] == 180)
     r1000 = next((r for r in scale if r['strips'] == 1000), None)
-    parts += ['**Reading.** Cost is linear in strips. At 180 strips the frame takes %.2f ms '
-              '(%.0f fps, %.1fx the thesis\' 41 fps): %.0f %% physics (4 x %.2f ms), %.0f %% '
-              'U-shape, %.0f %% marker bytes. The targets (410 fps at 180 strips, 60 fps at '
-              '1000) are missed: the physics step costs about 0.25 us per segment, most of it '
-              'in the integration kernel (trigonometry of the polar charts, the rest angles '
-              'recomputed every step as the head turns) and the inter-strip springs; the '
-              'Python around a step is another ~0.1 ms. %s'
+    seg_us = 1e3 * r180['physics_step_ms'] / (0.9 * r180['simulated_vertices'])
+    parts += ['**Reading.** Cost grows linearly with strips up to 1000; at 2000 the 45 MB '
+              'MarkerArray and the meshcat payload no longer scale (memory traffic). At 180 '
+              'strips the frame takes %.2f ms (%.0f fps, %.1fx the thesis\' 41 fps): %.0f %% '
+              'physics (4 x %.2f ms), %.0f %% U-shape, %.0f %% marker bytes. The targets (410 '
+              'fps at 180 strips, 60 fps at 1000) are missed. Where the time goes: a physics '
+              'step costs %.2f us per segment, most of it in the integration kernel (the '
+              'trigonometry of the polar charts, with the rest angles recomputed every step '
+              'as the head turns) and the inter-strip springs, plus ~0.1 ms of Python per '
+              'step; the U-shape costs ~6 us per strip (a tangent point and a bisection per '
+              'edge vertex and row). %s'
               % (r180['end_to_end_ms'], r180['end_to_end_fps'], r180['end_to_end_fps'] / 41,
                  100 * 4 * r180['physics_step_ms'] / r180['end_to_end_ms'],
-                 r180['physics_step_ms'],
-                 100 * r180['frame_ms'] / r180['end_to_end_ms'],
-                 100 * r180['marker_bytes_ms'] / r180['end_to_end_ms'],
+                 r180['physics_step_ms'], 100 * r180['frame_ms'] / r180['end_to_end_ms'],
+                 100 * r180['marker_bytes_ms'] / r180['end_to_end_ms'], seg_us,
                  ('At 1000 strips: %.0f fps.' % r1000['end_to_end_fps']) if r1000 else ''), '']
     parts += ['## What a scene does not need (`hair_sim_bench skip --json`)', '',
               table(skip, [('style', 'style'), ('feature', 'feature'), ('on_ms', 'on ms'),

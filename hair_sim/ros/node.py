@@ -144,11 +144,30 @@ class HairSimNode(Node):
             self.sim.stability_dt = 1.0 / float(sim_rate)
             if physics:
                 self.sim.set_params(**physics)
-        for prm in params:
-            if prm.name == 'frame_rate':
-                self._step_timer.timer_period_ns = int(1e9 / prm.value)
-            elif prm.name == 'publish_rate':
-                self._pub_timer.timer_period_ns = int(1e9 / prm.value)
+        changed = {p.name: p.value for p in params}
+        if 'hairstyle' in changed:
+            dirs = changed.get('hairstyle_dirs', self._p('hairstyle_dirs'))
+            try:
+                style = load_hairstyle(resolve_style_path(changed['hairstyle'], dirs, True))
+                self.sim.set_style(style)
+                self._encoder = None
+            except (HairstyleError, ValueError, OSError) as exc:
+                return self._refuse('hairstyle: %s' % exc)
+        for name, value in changed.items():
+            if name == 'frame_rate':
+                self._step_timer.timer_period_ns = int(1e9 / value)
+            elif name == 'publish_rate':
+                self._pub_timer.timer_period_ns = int(1e9 / value)
+            elif name == 'meshcat.rate' and self.meshcat is not None:
+                self.meshcat.rate = float(value)
+        if 'meshcat.enabled' in changed or 'meshcat.zmq_url' in changed:
+            enabled = changed.get('meshcat.enabled', self._p('meshcat.enabled'))
+            if self.meshcat is not None:
+                self.meshcat.stop()
+                self.meshcat = None
+            if enabled:
+                self._start_meshcat(changed.get('meshcat.zmq_url'),
+                                    changed.get('meshcat.rate'))
         return SetParametersResult(successful=True)
 
     def _refuse(self, reason):
@@ -323,16 +342,17 @@ class HairSimNode(Node):
         return response
 
     # -------------------------------------------------------------- meshcat
-    def _start_meshcat(self):
+    def _start_meshcat(self, zmq_url=None, rate=None):
         from hair_sim.sinks.meshcat_sink import MeshcatSink
 
         def on_url(url):
             self.meshcat_url = url
             self.get_logger().info('meshcat URL %s' % url)
 
-        self.meshcat = MeshcatSink(self.sim.head, rate=self._p('meshcat.rate'),
-                                   zmq_url=self._p('meshcat.zmq_url'),
-                                   logger=self.get_logger(), on_url=on_url).start()
+        self.meshcat = MeshcatSink(
+            self.sim.head, rate=self._p('meshcat.rate') if rate is None else rate,
+            zmq_url=self._p('meshcat.zmq_url') if zmq_url is None else zmq_url,
+            logger=self.get_logger(), on_url=on_url).start()
 
     def destroy_node(self):
         """Stop the meshcat worker, then destroy the node."""

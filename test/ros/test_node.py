@@ -86,7 +86,14 @@ def test_parameter_changes_take_effect_or_are_refused(node_env):
     assert node.sim.params.integrator == 'implicit' and node.sim.params.damping == 8.0
     res = node.set_parameters([Parameter('physics.integrator', value='explicit')])
     assert res[0].successful and node.sim.params.integrator == 'explicit'
-    assert node.counts['params_refused'] >= 3          # (type and range: rclpy refuses first)
+    res = node.set_parameters([Parameter('hairstyle', value='bob_fringe')])
+    assert res[0].successful and node.sim.style.name == 'bob_fringe'
+    res = node.set_parameters([Parameter('hairstyle', value='../../etc/passwd')])
+    assert not res[0].successful and '..' in res[0].reason
+    assert node.sim.style.name == 'bob_fringe'
+    res = node.set_parameters([Parameter('publish_rate', value=10.0)])
+    assert res[0].successful and node._pub_timer.timer_period_ns == int(1e8)
+    assert node.counts['params_refused'] >= 4          # (type and range: rclpy refuses first)
 
 
 def test_services_load_edit_save_reload_reset(node_env, tmp_path):
