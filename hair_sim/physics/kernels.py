@@ -18,6 +18,8 @@ from math import acos, atan2, cos, pi, sin, sqrt
 from numba import njit
 import numpy as np
 
+from hair_sim.vecmath import perpendicular_unit
+
 POLE_COS = cos(pi / 4.0)     # re-chart when |cos(theta)| exceeds this (45 deg from a pole)
 MAX_TURN = 0.35              # rad: largest change of theta or phi in one step (guard)
 GUARD_MARGIN = 2e-4          # m: the position guard puts vertices this far outside spheres
@@ -75,20 +77,11 @@ def _rechart(C, dx, dy, dz, rx, ry, rz):
     zz = dx * ry - dy * rx
     n = sqrt(zx * zx + zy * zy + zz * zz)
     if n < 1e-6:                      # d parallel to r: keep the old polar axis, minimally
-        dot = C[2, 0] * dx + C[2, 1] * dy + C[2, 2] * dz
-        zx = C[2, 0] - dot * dx
-        zy = C[2, 1] - dot * dy
-        zz = C[2, 2] - dot * dz
-        n = sqrt(zx * zx + zy * zy + zz * zz)
-        if n < 1e-6:
-            if abs(dx) < 0.9:
-                zx, zy, zz = 0.0, -dz, dy
-            else:
-                zx, zy, zz = dz, 0.0, -dx
-            n = sqrt(zx * zx + zy * zy + zz * zz)
-    zx /= n
-    zy /= n
-    zz /= n
+        zx, zy, zz = perpendicular_unit(C[2, 0], C[2, 1], C[2, 2], dx, dy, dz, 1e-6)
+    else:
+        zx /= n
+        zy /= n
+        zz /= n
     C[0, 0], C[0, 1], C[0, 2] = dx, dy, dz
     C[2, 0], C[2, 1], C[2, 2] = zx, zy, zz
     C[1, 0] = zy * dz - zz * dy
@@ -506,20 +499,13 @@ def _guard(px, py, pz, ex, ey, ez, seg_len, spheres, mask):
                 kappa = (D * D + seg_len * seg_len - rr * rr) / (2.0 * seg_len * D)
                 if kappa > -1.0:
                     kappa = min(kappa, 1.0)
-                    wx, wy, wz = (ex - px) / seg_len, (ey - py) / seg_len, (ez - pz) / seg_len
-                    du = wx * ux + wy * uy + wz * uz
-                    ox, oy, oz = wx - du * ux, wy - du * uy, wz - du * uz
-                    on = sqrt(ox * ox + oy * oy + oz * oz)
-                    if on < 1e-12:                  # heading straight at the centre
-                        if abs(ux) < 0.9:
-                            ox, oy, oz = 0.0, -uz, uy
-                        else:
-                            ox, oy, oz = uz, 0.0, -ux
-                        on = sqrt(ox * ox + oy * oy + oz * oz)
+                    # (heading straight at the centre: any side will do)
+                    ox, oy, oz = perpendicular_unit(ex - px, ey - py, ez - pz, ux, uy, uz,
+                                                    1e-12)
                     sk = sqrt(max(0.0, 1.0 - kappa * kappa))
-                    tx = px + kappa * ux + sk * ox / on
-                    ty = py + kappa * uy + sk * oy / on
-                    tz = pz + kappa * uz + sk * oz / on
+                    tx = px + kappa * ux + sk * ox
+                    ty = py + kappa * uy + sk * oy
+                    tz = pz + kappa * uz + sk * oz
                     hit = True
             else:
                 # A segment whose start rests on the surface may sag in like a chord lying

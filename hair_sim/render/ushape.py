@@ -16,6 +16,8 @@ from math import sqrt
 
 from numba import njit
 
+from hair_sim.vecmath import perpendicular_unit
+
 
 @njit(cache=True)
 def _inside_scalp(x, y, z, scalp):
@@ -41,19 +43,7 @@ def tangent_point(ax, ay, az, bx, by, bz, o, rs):
     uy /= d
     uz /= d
     # y axis of the local frame: in the plane of A, B, O, perpendicular to AO, towards B
-    wx, wy, wz = bx - ax, by - ay, bz - az
-    dot = wx * ux + wy * uy + wz * uz
-    yx, yy, yz = wx - dot * ux, wy - dot * uy, wz - dot * uz
-    n = sqrt(yx * yx + yy * yy + yz * yz)
-    if n < 1e-15:
-        if abs(ux) < 0.9:
-            yx, yy, yz = 0.0, -uz, uy
-        else:
-            yx, yy, yz = uz, 0.0, -ux
-        n = sqrt(yx * yx + yy * yy + yz * yz)
-    yx /= n
-    yy /= n
-    yz /= n
+    yx, yy, yz = perpendicular_unit(bx - ax, by - ay, bz - az, ux, uy, uz, 1e-15)
     # AA' makes angle beta = asin(rs / d) with AO, turned away from B (-y)
     sb = rs / d
     cb = sqrt(1.0 - sb * sb)
