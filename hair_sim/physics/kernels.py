@@ -50,11 +50,18 @@ def _wrap(a):
 @njit(cache=True)
 def _angles(C, dx, dy, dz):
     """Return (theta, phi) of unit direction d in chart C."""
+    th, ph, _ = _angles_cos(C, dx, dy, dz)
+    return th, ph
+
+
+@njit(cache=True)
+def _angles_cos(C, dx, dy, dz):
+    """Return (theta, phi, cos(theta)) of unit direction d in chart C."""
     cz = C[2, 0] * dx + C[2, 1] * dy + C[2, 2] * dz
     cx = C[0, 0] * dx + C[0, 1] * dy + C[0, 2] * dz
     cy = C[1, 0] * dx + C[1, 1] * dy + C[1, 2] * dz
     cz = min(1.0, max(-1.0, cz))
-    return acos(cz), atan2(cy, cx)
+    return acos(cz), atan2(cy, cx), cz
 
 
 @njit(cache=True)
@@ -284,11 +291,15 @@ def reaction_constraint_forces(pos, pos_prev, h_prev, length, spheres, sphere_ve
                 continue
             cx, cy, cz, r = spheres[kk, 0], spheres[kk, 1], spheres[kk, 2], spheres[kk, 3]
             for i in range(n_seg):
-                k = k_per_m * length[s, i]
-                c = c_per_m * length[s, i]
                 px, py, pz = pos[s, i + 1, 0], pos[s, i + 1, 1], pos[s, i + 1, 2]
                 ex, ey, ez = px - cx, py - cy, pz - cz
-                d = sqrt(ex * ex + ey * ey + ez * ez)
+                d2 = ex * ex + ey * ey + ez * ez
+                reach = r + CONTACT_SKIN + length[s, i]
+                if d2 > reach * reach:
+                    continue        # neither the end nor any point of the segment is in contact
+                k = k_per_m * length[s, i]
+                c = c_per_m * length[s, i]
+                d = sqrt(d2)
                 if d < r + CONTACT_SKIN and d > 1e-12:
                     nx, ny, nz = ex / d, ey / d, ez / d
                     vx = (px - pos_prev[s, i + 1, 0]) * inv_h - sphere_vel[kk, 0]
@@ -483,11 +494,14 @@ def _guard(px, py, pz, ex, ey, ez, seg_len, spheres, mask):
             if not (mask >> np.int64(kk)) & np.int64(1):
                 continue
             cx, cy, cz, r = spheres[kk, 0], spheres[kk, 1], spheres[kk, 2], spheres[kk, 3]
+            dx, dy, dz = ex - cx, ey - cy, ez - cz
+            d2 = dx * dx + dy * dy + dz * dz
+            if d2 > (r + seg_len) * (r + seg_len):
+                continue            # the end is so far out that no point of the segment is in
             sx, sy, sz = px - cx, py - cy, pz - cz
             if sx * sx + sy * sy + sz * sz < (r - 1e-4) * (r - 1e-4):
                 continue
-            dx, dy, dz = ex - cx, ey - cy, ez - cz
-            d = sqrt(dx * dx + dy * dy + dz * dz)
+            d = sqrt(d2)
             tx, ty, tz = 0.0, 0.0, 0.0
             hit = False
             if d < r:
@@ -579,8 +593,9 @@ def integrate_strands(theta, phi, theta_prev, phi_prev, chart, rest_dir, length,
             rz = R[2, 0] * hx + R[2, 1] * hy + R[2, 2] * hz
             th, ph = theta[s, i], phi[s, i]
             thp, php = theta_prev[s, i], phi_prev[s, i]
-            th0, ph0 = _angles(C, rx, ry, rz)
-            if abs(cos(th)) > POLE_COS or abs(cos(th0)) > POLE_COS:
+            th0, ph0, ct0 = _angles_cos(C, rx, ry, rz)
+            ct = cos(th)
+            if abs(ct) > POLE_COS or abs(ct0) > POLE_COS:
                 dx, dy, dz = _direction(C, th, ph)
                 qx, qy, qz = _direction(C, thp, php)
                 _rechart(C, dx, dy, dz, rx, ry, rz)
@@ -588,7 +603,8 @@ def integrate_strands(theta, phi, theta_prev, phi_prev, chart, rest_dir, length,
                 thp, php = _angles(C, qx, qy, qz)
                 th0, ph0 = _angles(C, rx, ry, rz)
                 recharts += 1
-            st, ct = sin(th), cos(th)
+                ct = cos(th)
+            st = sin(th)
             sp, cp = sin(ph), cos(ph)
             if st < min_sin:
                 min_sin = st
