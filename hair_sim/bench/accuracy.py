@@ -90,25 +90,37 @@ def pendulum_reference(length, amplitude, duration, params):
     return tip
 
 
-def pendulum_records(dts, duration):
-    """Return the records of scenario 1 for every integrator and dt."""
-    length, amp = 0.03, 0.3
-    params = PhysicsParams()
-    ref = pendulum_reference(length, amp, duration, params)
-    root = np.array([0.0, 0.0, 1.0])
-    start = np.array([[[math.sin(amp), 0.0, -math.cos(amp)]]])
+def _bare_records(scenario, rest, start, ref, dts, duration, scored=slice(None)):
+    """
+    Release one bare strand at every dt with both integrators and score it.
+
+    The strand has rest shape `rest` and starts along directions `start`; its vertices
+    `scored` are compared with ref(times) at every step.
+    """
+    root = rest[0, 0]
     out = []
     for integ in INTEGRATORS:
-        for dt in progress(dts, 'pendulum %s' % integ):
-            sim = _bare(np.array([[root, root + [0, 0, -length]]]), integ, damping=12.0)
+        for dt in progress(dts, '%s %s' % (scenario, integ)):
+            sim = _bare(rest, integ)
             sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
             sim.set_directions(start)
             (times, pos, ok), cost = cpu_time(_run_sampled, sim, dt, duration, dt)
-            rms, final = _errors(pos[:, 0, 1] - root, ref(times))
-            out.append({'scenario': 'pendulum', 'integrator': integ, 'dt': dt,
+            rms, final = _errors(pos[:, 0, scored] - root, ref(times))
+            out.append({'scenario': scenario, 'integrator': integ, 'dt': dt,
                         'cost_s_per_sim_s': cost / duration, 'rms_error_m': rms,
                         'final_error_m': final, 'stable': ok})
     return out
+
+
+def pendulum_records(dts, duration):
+    """Return the records of scenario 1 for every integrator and dt."""
+    length, amp = 0.03, 0.3
+    ref = pendulum_reference(length, amp, duration, PhysicsParams())
+    root = np.array([0.0, 0.0, 1.0])
+    start = np.array([[[math.sin(amp), 0.0, -math.cos(amp)]]])
+
+    return _bare_records('pendulum', np.array([[root, root + [0, 0, -length]]]), start,
+                         lambda times: ref(times)[:, None], dts, duration, slice(1, 2))
 
 
 # ------------------------------------------------------------------ 2. chain
@@ -150,22 +162,11 @@ def chain_reference(n, length, duration, params):
 def chain_records(dts, duration):
     """Return the records of scenario 2 (10 segments from horizontal), every integrator/dt."""
     n, length = 10, 0.03
-    params = PhysicsParams()
-    ref = chain_reference(n, length, duration, params)
+    ref = chain_reference(n, length, duration, PhysicsParams())
     root = np.array([0.0, 0.0, 1.0])
     rest = np.array([root + [0, 0, -length * j] for j in range(n + 1)])[None]
-    out = []
-    for integ in INTEGRATORS:
-        for dt in progress(dts, 'chain %s' % integ):
-            sim = _bare(rest, integ)
-            sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
-            sim.set_directions(np.tile([1.0, 0.0, 0.0], (1, n, 1)))
-            (times, pos, ok), cost = cpu_time(_run_sampled, sim, dt, duration, dt)
-            rms, final = _errors(pos[:, 0] - root, ref(times))
-            out.append({'scenario': 'chain', 'integrator': integ, 'dt': dt,
-                        'cost_s_per_sim_s': cost / duration, 'rms_error_m': rms,
-                        'final_error_m': final, 'stable': ok})
-    return out
+    return _bare_records('chain', rest, np.tile([1.0, 0.0, 0.0], (1, n, 1)), ref, dts,
+                         duration)
 
 
 # ------------------------------------------------------------------ 3. hairstyle
