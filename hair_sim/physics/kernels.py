@@ -123,6 +123,13 @@ def rotate_charts(chart, R):
 
 
 @njit(cache=True)
+def _rotate(R, x, y, z):
+    """Return R (x, y, z)."""
+    return (R[0, 0] * x + R[0, 1] * y + R[0, 2] * z, R[1, 0] * x + R[1, 1] * y + R[1, 2] * z,
+            R[2, 0] * x + R[2, 1] * y + R[2, 2] * z)
+
+
+@njit(cache=True)
 def root_kinematics(root_head, spheres_head, R, p, v, a, w, alpha, roots, root_acc, spheres,
                     sphere_vel):
     """
@@ -132,10 +139,7 @@ def root_kinematics(root_head, spheres_head, R, p, v, a, w, alpha, roots, root_a
     a + alpha x r + w x (w x r) (the inertial force of thesis eq. 5 uses the roots').
     """
     for s in range(root_head.shape[0]):
-        hx, hy, hz = root_head[s, 0], root_head[s, 1], root_head[s, 2]
-        rx = R[0, 0] * hx + R[0, 1] * hy + R[0, 2] * hz
-        ry = R[1, 0] * hx + R[1, 1] * hy + R[1, 2] * hz
-        rz = R[2, 0] * hx + R[2, 1] * hy + R[2, 2] * hz
+        rx, ry, rz = _rotate(R, root_head[s, 0], root_head[s, 1], root_head[s, 2])
         roots[s, 0], roots[s, 1], roots[s, 2] = rx + p[0], ry + p[1], rz + p[2]
         cx = w[1] * rz - w[2] * ry
         cy = w[2] * rx - w[0] * rz
@@ -144,10 +148,7 @@ def root_kinematics(root_head, spheres_head, R, p, v, a, w, alpha, roots, root_a
         root_acc[s, 1] = a[1] + alpha[2] * rx - alpha[0] * rz + w[2] * cx - w[0] * cz
         root_acc[s, 2] = a[2] + alpha[0] * ry - alpha[1] * rx + w[0] * cy - w[1] * cx
     for k in range(spheres_head.shape[0]):
-        hx, hy, hz = spheres_head[k, 0], spheres_head[k, 1], spheres_head[k, 2]
-        rx = R[0, 0] * hx + R[0, 1] * hy + R[0, 2] * hz
-        ry = R[1, 0] * hx + R[1, 1] * hy + R[1, 2] * hz
-        rz = R[2, 0] * hx + R[2, 1] * hy + R[2, 2] * hz
+        rx, ry, rz = _rotate(R, spheres_head[k, 0], spheres_head[k, 1], spheres_head[k, 2])
         spheres[k, 0], spheres[k, 1], spheres[k, 2] = rx + p[0], ry + p[1], rz + p[2]
         spheres[k, 3] = spheres_head[k, 3]
         sphere_vel[k, 0] = v[0] + w[1] * rz - w[2] * ry
@@ -587,10 +588,7 @@ def integrate_strands(theta, phi, theta_prev, phi_prev, chart, rest_dir, length,
         mask = masks[s] if collide else np.int64(0)
         for i in range(n_seg):
             C = chart[s, i]
-            hx, hy, hz = rest_dir[s, i, 0], rest_dir[s, i, 1], rest_dir[s, i, 2]
-            rx = R[0, 0] * hx + R[0, 1] * hy + R[0, 2] * hz
-            ry = R[1, 0] * hx + R[1, 1] * hy + R[1, 2] * hz
-            rz = R[2, 0] * hx + R[2, 1] * hy + R[2, 2] * hz
+            rx, ry, rz = _rotate(R, rest_dir[s, i, 0], rest_dir[s, i, 1], rest_dir[s, i, 2])
             th, ph = theta[s, i], phi[s, i]
             thp, php = theta_prev[s, i], phi_prev[s, i]
             th0, ph0, ct0 = _angles_cos(C, rx, ry, rz)

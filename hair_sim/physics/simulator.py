@@ -94,10 +94,7 @@ class HairSimulator:
                 for side, (me, other) in enumerate(((a, b), (b, a))):
                     sd = kernels.wall_signed_distance(rest, scalp_head, me, other, j)[0]
                     self.wall_sign[q, j, side] = 1.0 if sd >= 0 else -1.0
-        proj = self.head.nearest_on_scalp(rest)
-        d3 = np.linalg.norm(rest - proj, axis=2)
-        self.rest3 = np.where(d3 < self.params.scalp_spring_reach, d3, -1.0)
-        self.rest3[:, 0] = -1.0
+        self.rest3 = self._scalp_rest_lengths(self.params.scalp_spring_reach)
         self.theta = np.zeros((n_s, n_seg))
         self.phi = np.zeros((n_s, n_seg))
         self.chart = np.zeros((n_s, n_seg, 3, 3))
@@ -222,11 +219,15 @@ class HairSimulator:
         self.motion.params = new
         self._update_material()
         if 'scalp_spring_reach' in changes:
-            proj = self.head.nearest_on_scalp(self.rest)
-            d3 = np.linalg.norm(self.rest - proj, axis=2)
-            self.rest3 = np.where(d3 < new.scalp_spring_reach, d3, -1.0)
-            self.rest3[:, 0] = -1.0
+            self.rest3 = self._scalp_rest_lengths(new.scalp_spring_reach)
         self._wake('params')
+
+    def _scalp_rest_lengths(self, reach):
+        """Return the rest length of every vertex's scalp spring (type 3), -1 where none."""
+        d3 = np.linalg.norm(self.rest - self.head.nearest_on_scalp(self.rest), axis=2)
+        rest3 = np.where(d3 < reach, d3, -1.0)
+        rest3[:, 0] = -1.0                 # roots sit on the scalp
+        return rest3
 
     def _wake(self, reason):
         if self.sleeping:

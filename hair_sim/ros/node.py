@@ -146,9 +146,8 @@ class HairSimNode(Node):
                 self.sim.set_params(**physics)
         changed = {p.name: p.value for p in params}
         if 'hairstyle' in changed:
-            dirs = changed.get('hairstyle_dirs', self._p('hairstyle_dirs'))
             try:
-                style = load_hairstyle(resolve_style_path(changed['hairstyle'], dirs, True))
+                style = self._load(changed['hairstyle'], changed.get('hairstyle_dirs'))
                 self.sim.set_style(style)
                 self._encoder = None
             except (HairstyleError, ValueError, OSError) as exc:
@@ -293,9 +292,9 @@ class HairSimNode(Node):
         self.pub_diag.publish(arr)
 
     # -------------------------------------------------------------- services
-    def _load(self, request):
-        path = resolve_style_path(request, self._p('hairstyle_dirs'), must_exist=True)
-        return load_hairstyle(path)
+    def _load(self, request, dirs=None):
+        dirs = self._p('hairstyle_dirs') if dirs is None else dirs
+        return load_hairstyle(resolve_style_path(request, dirs, must_exist=True))
 
     def _on_reset(self, request, response):
         self.sim.reset()
