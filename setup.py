@@ -28,6 +28,7 @@ setup(
         'console_scripts': [
             'hair_sim_node = hair_sim.ros.node:main',
             'hair_sim_demo = hair_sim.ros.demo:main',
+            'hair_sim_head_driver = hair_sim.ros.head_driver:main',
             'hair_sim_bench = hair_sim.bench.cli:main',
         ],
     },

@@ -13,7 +13,7 @@ import numpy as np
 
 from hair_sim import load_hairstyle, paths
 from hair_sim.bench.common import progress, save_figure
-from hair_sim.physics.scripts import demo
+from hair_sim.bench.scenarios import demo
 from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator
 from hair_sim.sinks.markers import MarkerEncoder, MarkerLayout
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from hair_sim import load_hairstyle, paths
 from hair_sim.bench.common import progress
-from hair_sim.physics.scripts import demo
+from hair_sim.bench.scenarios import demo
 from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator
 
 SUBSTEPS = int(round(1.0 / (60 * DEFAULT_DT)))

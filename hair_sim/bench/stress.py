@@ -20,7 +20,7 @@ import numpy as np
 from hair_sim import load_hairstyle, load_head, paths
 from hair_sim.bench.common import progress, save_figure
 from hair_sim.physics.params import RANGES
-from hair_sim.physics.scripts import quat_from_euler, violent
+from hair_sim.bench.scenarios import quat_from_euler, violent
 from hair_sim.physics.simulator import HairSimulator, stability_problem
 
 DTS_FULL = [1 / 1000, 1 / 240, 1 / 60, 1 / 30]

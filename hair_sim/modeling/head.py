@@ -12,11 +12,12 @@ metres):
   `back_z` at `back_x` to `front_z` at `front_x`; the region is the scalp above it.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 import os
 
 import numpy as np
 
+from hair_sim.modeling import fields
 from hair_sim.modeling.errors import HairstyleError
 from hair_sim.modeling.yamlio import read_yaml
 
@@ -31,7 +32,7 @@ class HeadModel:
     body: np.ndarray
     projection_sphere: np.ndarray
     hairline: dict
-    sphere_names: list = field(default_factory=list)
+    mesh: str = ''                     # optional display mesh (file name next to the head file)
     path: str = ''
 
     @property
@@ -75,42 +76,40 @@ class HeadModel:
         return p[..., 2] >= self.hairline_z(p[..., 0])
 
 
+MAX_SPHERES = 63               # collision spheres in all (a 64-bit mask per strand)
+MAX_EXTENT = 2.0              # m: centres and hairline within this of the head origin
+MAX_RADIUS = 1.0              # m
+HEAD_KEYS = {'name', 'frame_id', 'scalp_spheres', 'collision_spheres', 'projection_sphere',
+             'hairline', 'mesh'}
+
+
 def _sphere_list(data, key, path, required):
     items = data.get(key)
+    where = 'head file %s' % path
     if items is None:
         if required:
-            raise HairstyleError('head file %s: missing "%s"' % (path, key))
-        return np.zeros((0, 4)), []
+            raise HairstyleError('%s: missing "%s"' % (where, key))
+        return np.zeros((0, 4))
     if not isinstance(items, list) or (required and not items):
-        raise HairstyleError('head file %s: "%s" must be a non-empty list of spheres'
-                             % (path, key))
-    rows, names = [], []
-    for i, s in enumerate(items):
-        rows.append(_sphere(s, path, '%s[%d]' % (key, i)))
-        names.append(str(s.get('name', '%s%d' % (key, i))))
-    return np.array(rows, dtype=np.float64).reshape(-1, 4), names
+        raise HairstyleError('%s: "%s" must be a non-empty list of spheres' % (where, key))
+    if len(items) > MAX_SPHERES:
+        raise HairstyleError('%s: %d %s is over the limit of %d spheres'
+                             % (where, len(items), key, MAX_SPHERES))
+    rows = [_sphere(s, path, '%s[%d]' % (key, i)) for i, s in enumerate(items)]
+    return np.array(rows, dtype=np.float64).reshape(-1, 4)
 
 
-def _sphere(s, path, where):
+def _sphere(s, path, name):
+    where = 'head file %s: %s' % (path, name)
     if not isinstance(s, dict) or 'center' not in s or 'radius' not in s:
-        raise HairstyleError('head file %s: %s must be a mapping with center and radius'
-                             % (path, where))
-    try:
-        c = np.array(s['center'], dtype=np.float64)
-        r = float(s['radius'])
-    except (TypeError, ValueError):
-        raise HairstyleError('head file %s: %s has a non-numeric center or radius'
-                             % (path, where))
-    if c.shape != (3,):
-        raise HairstyleError('head file %s: %s center must have 3 coordinates' % (path, where))
-    if not (np.all(np.isfinite(c)) and np.isfinite(r)):
-        raise HairstyleError('head file %s: %s has a non-finite number' % (path, where))
-    if not 0.0 < r < 10.0:
-        raise HairstyleError('head file %s: %s radius %g m is outside (0, 10)'
-                             % (path, where, r))
-    if np.abs(c).max() > 10.0:
-        raise HairstyleError('head file %s: %s center is over 10 m from the head origin'
-                             % (path, where))
+        raise HairstyleError('%s must be a mapping with center and radius' % where)
+    fields.require_mapping(s, 'the sphere', where, {'name', 'center', 'radius'})
+    if 'name' in s:
+        fields.string(s['name'], 'name', where, 64)
+    c = fields.numeric_array(s['center'], 'center', where, 1, MAX_EXTENT, (3,))
+    r = fields.number(s['radius'], 'radius', 0.0, MAX_RADIUS, where)
+    if r <= 0.0:
+        raise HairstyleError('%s: radius must be positive' % where)
     return [c[0], c[1], c[2], r]
 
 
@@ -118,25 +117,32 @@ def load_head(path):
     """Load and validate a head file; raise HairstyleError with the reason if it is bad."""
     path = os.path.abspath(path)
     data = read_yaml(path, 'head')
-    scalp, scalp_names = _sphere_list(data, 'scalp_spheres', path, True)
-    body, body_names = _sphere_list(data, 'collision_spheres', path, False)
+    where = 'head file %s' % path
+    fields.require_mapping(data, 'the head', where, HEAD_KEYS)
+    scalp = _sphere_list(data, 'scalp_spheres', path, True)
+    body = _sphere_list(data, 'collision_spheres', path, False)
+    if len(scalp) + len(body) > MAX_SPHERES:
+        raise HairstyleError('%s: %d collision spheres in all is over the limit of %d'
+                             % (where, len(scalp) + len(body), MAX_SPHERES))
     if 'projection_sphere' not in data:
-        raise HairstyleError('head file %s: missing "projection_sphere"' % path)
+        raise HairstyleError('%s: missing "projection_sphere"' % where)
     proj = np.array(_sphere(data['projection_sphere'], path, 'projection_sphere'))
     if np.min(np.linalg.norm(proj[:3] - scalp[:, :3], axis=1) + proj[3] - scalp[:, 3]) > 0:
-        raise HairstyleError('head file %s: the projection sphere must lie inside a scalp '
-                             'sphere (thesis 3.2)' % path)
-    hl = data.get('hairline', {})
-    try:
-        hairline = {k: float(hl[k]) for k in ('front_x', 'front_z', 'back_x', 'back_z')}
-    except (KeyError, TypeError, ValueError):
-        raise HairstyleError('head file %s: "hairline" needs numeric front_x, front_z, '
-                             'back_x, back_z' % path)
-    if not all(np.isfinite(v) for v in hairline.values()) or \
-            hairline['front_x'] <= hairline['back_x']:
-        raise HairstyleError('head file %s: hairline needs finite values with front_x > back_x'
-                             % path)
-    return HeadModel(name=str(data.get('name', os.path.splitext(os.path.basename(path))[0])),
-                     frame_id=str(data.get('frame_id', 'head')), scalp=scalp, body=body,
-                     projection_sphere=proj, hairline=hairline,
-                     sphere_names=scalp_names + body_names, path=path)
+        raise HairstyleError('%s: the projection sphere must lie inside a scalp sphere '
+                             '(thesis 3.2)' % where)
+    hl = data.get('hairline')
+    keys = ('front_x', 'front_z', 'back_x', 'back_z')
+    if not isinstance(hl, dict) or any(k not in hl for k in keys):
+        raise HairstyleError('%s: "hairline" needs numeric front_x, front_z, back_x, back_z'
+                             % where)
+    fields.require_mapping(hl, 'hairline', where, set(keys))
+    hairline = {k: fields.number(hl[k], 'hairline.' + k, -MAX_EXTENT, MAX_EXTENT, where)
+                for k in keys}
+    if hairline['front_x'] <= hairline['back_x']:
+        raise HairstyleError('%s: hairline needs front_x > back_x' % where)
+    name = fields.string(data.get('name', os.path.splitext(os.path.basename(path))[0]),
+                         'name', where, 64)
+    frame = fields.frame_id(data.get('frame_id', 'head'), 'frame_id', where)
+    mesh = fields.string(data['mesh'], 'mesh', where, 200) if 'mesh' in data else ''
+    return HeadModel(name=name, frame_id=frame, scalp=scalp, body=body,
+                     projection_sphere=proj, hairline=hairline, mesh=mesh, path=path)

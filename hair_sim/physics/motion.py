@@ -4,8 +4,10 @@ Head motion from stamped poses: pose, velocity and acceleration at simulation ti
 Poses arrive stamped (seconds) and are mapped onto the simulator's clock. They may jitter,
 repeat, come out of order, jump in time or teleport; each case is sorted here:
 
-- repeated or older stamps are dropped (counted);
-- a stamp far ahead of or behind the simulator clock re-anchors the mapping (a clock jump);
+- repeated stamps and stamps a little older than the last are dropped (counted);
+- a stamp far ahead of or behind the simulator clock, or more than `clock_jump_back`
+  seconds older than the last one (a looping bag, a restarted tracker), re-anchors the
+  mapping (a clock jump, counted);
 - a jump both large (over `TELEPORT_DISTANCE` / `TELEPORT_ANGLE`) and faster than the
   limits is a teleport: the hair is carried rigidly with the head, no inertial kick;
 - jitter is smoothed by low-passing the velocity and clamping the acceleration;
@@ -97,18 +99,27 @@ class HeadMotion:
             self.counts['normalised'] += 1
             verdict = 'normalised'
         q = q / n
-        if self.samples:
-            last_stamp = self.samples[-1][1]
+        prev = self.samples[-1] if self.samples else None
+        if prev is not None:
+            last_stamp = prev[1]
             if stamp == last_stamp:
                 self.counts['repeated'] += 1
                 return 'repeated'
             if stamp < last_stamp:
-                self.counts['out_of_order'] += 1
-                return 'out_of_order'
+                if last_stamp - stamp <= self.params.clock_jump_back:
+                    self.counts['out_of_order'] += 1
+                    return 'out_of_order'
+                # a looping bag or a restarted tracker: the clock jumped back; re-anchor
+                self.samples.clear()
+                self.offset = None
         if self.offset is None:
-            # the first pose places the head: the hair is carried there rigidly, no kick
+            # the first pose (or the first after the clock jumped back) anchors the clock
             self.offset = stamp - now
-            self.teleported = True
+            if prev is None:                # the very first places the head: no kick
+                self.teleported = True
+            else:
+                self.counts['clock_jump'] += 1
+                verdict = 'clock_jump'
         t = stamp - self.offset
         if self.samples and (t > now + MAX_LEAD or t < now - MAX_GAP):
             self.offset = stamp - now
@@ -117,10 +128,10 @@ class HeadMotion:
             verdict = 'clock_jump'
             while self.samples and self.samples[-1][0] >= t:
                 self.samples.pop()
-        if self.samples:
-            _, _, p0, q0 = self.samples[-1]
+        if prev is not None:
+            _, _, p0, q0 = prev
             # the head will cover the jump between now (or the last sample) and t
-            dt = max(t - max(self.samples[-1][0], now), 1e-3)
+            dt = max(t - max(self.samples[-1][0], now) if self.samples else t - now, 1e-3)
             dist = float(np.linalg.norm(p - p0))
             ang = 2.0 * math.acos(min(1.0, abs(float(np.dot(q, q0)))))
             if (dist > TELEPORT_DISTANCE and dist / dt > self.params.max_head_speed) or \
@@ -132,6 +143,11 @@ class HeadMotion:
         self.samples.append((t, stamp, p, q))
         self.counts['accepted'] += 1
         return verdict
+
+    @property
+    def newest_stamp(self):
+        """Return the stamp of the newest accepted pose, or None."""
+        return self.samples[-1][1] if self.samples else None
 
     def pose_at(self, t):
         """Return (position, quaternion) of the head at simulator time t, or None if unknown."""

@@ -34,6 +34,7 @@ RANGES = {
     'max_head_angular_speed': (0.1, 1000.0),
     'max_head_acceleration': (1.0, 10000.0),
     'motion_smoothing': (0.0, 1.0),
+    'clock_jump_back': (0.001, 86400.0),
 }
 INTEGRATORS = ('explicit', 'implicit')
 
@@ -89,6 +90,9 @@ class PhysicsParams:
     max_head_angular_speed: float = 40.0  # rad/s
     max_head_acceleration: float = 300.0  # m/s^2 (about 30 g)
     motion_smoothing: float = 0.02      # s, low-pass time constant of head velocity
+    # A pose stamped more than this (s) before the last one re-anchors the clock (a looping
+    # bag, a restarted tracker); a smaller step back is an out-of-order pose and dropped.
+    clock_jump_back: float = 0.5
     # Event-triggered animation (thesis 4.1): sleep when, with steady inputs, no vertex has
     # moved more than sleep_tolerance (m) for sleep_delay seconds.
     sleep_tolerance: float = 0.0005

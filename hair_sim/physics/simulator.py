@@ -1,5 +1,6 @@
 """HairSimulator: the thin class users call; state lives in arrays handed to the kernels."""
 
+from dataclasses import asdict
 import math
 import time as _time
 
@@ -29,7 +30,9 @@ class HairSimulator:
 
     def __init__(self, style, **params):
         self._init_common(params)
-        self.set_style(style)
+        strips = build_strips(style)
+        self._set_geometry(style, strips.rest.copy(), style.head, strips.neighbor_pairs)
+        self.strips = strips
 
     # ----------------------------------------------------------------- set-up
     @classmethod
@@ -59,13 +62,61 @@ class HairSimulator:
         self._p = np.zeros(3)
 
     def set_style(self, style):
-        """Tessellate `style` (thesis 6.2) and start its strands at rest under the head."""
-        strips = build_strips(style)
-        self._set_geometry(style, strips.rest.copy(), style.head, strips.neighbor_pairs)
-        self.strips = strips
+        """
+        Tessellate `style` (thesis 6.2) and start its strands at rest under the head.
+
+        All or nothing: the new strands are built and stability-checked off to the side
+        and swapped in at once; on any error this simulator is left as it was.
+        """
+        fresh = HairSimulator(style, **asdict(self.params))
+        reason = stability_problem(self.params, fresh, self.stability_dt)
+        if reason:
+            raise ValueError(reason)
+        fresh.adopt(self)
+        self.__dict__.update(fresh.__dict__)
+
+    def adopt(self, old):
+        """
+        Take over `old`'s clock, inputs, head pose, parameters and counters.
+
+        A simulator built off to the side for a new style continues where the running one
+        is: the same head motion stream, wind and time; the hair starts at rest under the
+        current head pose.
+        """
+        self.params = old.params
+        self._update_material()
+        self.motion = old.motion
+        self.motion.params = old.params
+        self.wind = old.wind
+        self.time = old.time
+        self.counters = dict(old.counters)
+        self.stability_dt = old.stability_dt
+        self.broad_phase = old.broad_phase
+        self._R, self._p = old._R.copy(), old._p.copy()
+        self._place_at_rest()
+        self.state_version = old.state_version + 1
+
+    def stamp_at(self, t=None):
+        """
+        Return the head-pose stamp (s) that simulator time t (default: now) corresponds to.
+
+        Poses are mapped onto the simulator's clock by an offset (see HeadMotion); the
+        state at time t follows the head pose stamped t + offset, or the newest pose when t
+        is past it (the head is held there), so a renderer can line the hair up with the
+        head pose it followed. None before any pose arrived.
+        """
+        offset = self.motion.offset
+        if offset is None:
+            return None
+        stamp = (self.time if t is None else t) + offset
+        newest = self.motion.newest_stamp
+        # past the newest pose the head is held there: the hair follows no newer pose
+        return stamp if newest is None else min(stamp, newest)
 
     def _set_geometry(self, style, rest, head, pairs):
         """Build every per-segment array from rest strands (head frame)."""
+        if len(head.collision) > 63:
+            raise ValueError('at most 63 collision spheres are supported')
         self.rest_guarded = kernels.guard_rest_shape(rest, np.ascontiguousarray(head.collision))
         seg = np.diff(rest, axis=1)
         length = np.linalg.norm(seg, axis=2)
@@ -81,8 +132,6 @@ class HairSimulator:
         self.reach = length.sum(axis=1)
         self.spheres_head = np.ascontiguousarray(self.head.collision)
         self.n_scalp = len(self.head.scalp)
-        if self.spheres_head.shape[0] > 63:
-            raise ValueError('at most 63 collision spheres are supported')
         n_s, n_seg = length.shape
         self.pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
         self.rest1 = np.linalg.norm(rest[self.pairs[:, 1]] - rest[self.pairs[:, 0]], axis=2) \
@@ -164,8 +213,15 @@ class HairSimulator:
         self.state_version += 1
         self.stats[3] = 1.0
 
-    def reset(self):
-        """Put the hair back at its rest shape under the current head pose, awake."""
+    def reset(self, clock=False):
+        """
+        Put the hair back at its rest shape under the current head pose, awake.
+
+        clock=True also forgets the pose history, so the next pose re-anchors the clock
+        (after a tracker restart) and places the head.
+        """
+        if clock:
+            self.motion.reset()
         self._place_at_rest()
 
     def set_directions(self, directions):
@@ -417,17 +473,22 @@ class HairSimulator:
 
 
 def stability_problem(params, sim, dt):
-    """Return why `params` would be unstable at step dt for sim's strands, or None."""
-    mass = params.linear_density * sim.length
-    inv_i = 3.0 / (mass * sim.length ** 2)
-    k_h = params.bending_stiffness / sim.length
+    """
+    Return why `params` would be unstable at step dt for sim's strands, or None.
+
+    sim: a simulator, or the (n_strands, n_segments) segment lengths of a style.
+    """
+    length = np.asarray(getattr(sim, 'length', sim), dtype=np.float64)
+    mass = params.linear_density * length
+    inv_i = 3.0 / (mass * length ** 2)
+    k_h = params.bending_stiffness / length
     springs = 0.0
     if params.inter_strip:
         springs += params.neighbor_stiffness + params.wall_stiffness + params.scalp_stiffness
     if params.collisions:
         springs += params.collision_stiffness
     # per-metre springs on a segment of mass lambda l, acting at its end: k l * l^2 / I
-    explicit = (0.5 * mass * params.gravity * sim.length + springs * sim.length ** 3) * inv_i
+    explicit = (0.5 * mass * params.gravity * length + springs * length ** 3) * inv_i
     if params.integrator == 'explicit':
         explicit = explicit + k_h * inv_i
         if params.damping * dt > 2.0 * STABILITY_MARGIN:

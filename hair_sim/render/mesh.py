@@ -76,6 +76,11 @@ class HairRenderer:
         self._vis = np.zeros(self.n_strips, dtype=np.int64)
         self._bottoms = np.zeros_like(rest)
 
+    @classmethod
+    def for_simulator(cls, sim, point_centre=False):
+        """Return the renderer of a simulator's style and strands."""
+        return cls(sim.style, sim.strips, sim.rest, sim.head, point_centre=point_centre)
+
     def _world(self, R, p):
         scalp = self.head.scalp.copy()
         scalp[:, :3] = scalp[:, :3] @ R.T + p

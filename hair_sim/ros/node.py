@@ -1,10 +1,27 @@
-"""hair_sim_node: head pose and wind in, hair markers, meshes and state out."""
+"""
+hair_sim_node: head pose and wind in, hair markers, meshes and state out.
 
-from collections import deque
+The node owns topics, parameters, services and timers; the numerics live in HairSimulator
+and the renderer. Its boundary holds against careless and hostile pipelines:
+
+- every callback catches what it does not expect, answers or logs it, counts it in
+  /diagnostics and leaves the running simulation as it was; nothing ends the process;
+- parameters are validated as a whole in on_set (nothing changes there) and applied in
+  post_set, so a refused set changes nothing;
+- styles (load, edit, the hairstyle parameter) are read, checked against the frame budget,
+  built and stability-checked on a worker thread while the old one keeps publishing, then
+  swapped in with one assignment (see scene.py); derived state is keyed by the scene
+  version;
+- every published message carries the stamp of the head pose it was computed for.
+"""
+
+from collections import Counter, deque
+import functools
 import math
 import os
 import sys
 import time
+import traceback
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
@@ -14,25 +31,32 @@ import numpy as np
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
 import rclpy
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
+from hair_sim.modeling import fields
 from hair_sim.modeling.errors import HairstyleError
-from hair_sim.modeling.hairstyle import load_hairstyle, save_hairstyle
-from hair_sim.modeling.safepath import resolve_style_path
+from hair_sim.modeling.hairstyle import budget_problem, load_hairstyle, save_hairstyle
+from hair_sim.modeling.safepath import allowed_dirs, resolve_style_path
+from hair_sim.modeling.strips import build_strips
 from hair_sim.physics.params import PhysicsParams
 from hair_sim.physics.simulator import HairSimulator, stability_problem
-from hair_sim.ros.params import all_parameters
-from hair_sim.sinks.markers import MarkerEncoder, MarkerLayout
+from hair_sim.render.mesh import HairRenderer
+from hair_sim.ros.params import all_parameters, PHYSICS
+from hair_sim.ros.scene import Scene, SceneBuilder
+from hair_sim.sinks.markers import delete_all_markers, MarkerEncoder, MarkerLayout
 from hair_sim.sinks.mesh_msg import hair_mesh_cdr, hair_state_cdr
 
-PHYSICS = 'physics.'
+LATENCY_WINDOW = 600            # publishes kept for the latency percentiles
+MAX_MESSAGE = 300               # characters of a refusal reason sent back
 
 
-def _descriptor(name, default, description, rng):
+def _descriptor(default, description, rng):
     d = ParameterDescriptor(description=description)
     if rng is not None and not isinstance(default, bool):
         if isinstance(default, int):
@@ -46,7 +70,26 @@ def _descriptor(name, default, description, rng):
 
 def _stamp(t):
     sec = int(math.floor(t))
-    return sec, int((t - sec) * 1e9)
+    return sec, min(int((t - sec) * 1e9), 999999999)
+
+
+def _short(text):
+    text = str(text)
+    return text if len(text) <= MAX_MESSAGE else text[:MAX_MESSAGE - 3] + '...'
+
+
+def guarded(kind):
+    """Wrap a timer or subscription callback: an unexpected error is logged and counted."""
+    def wrap(fn):
+        @functools.wraps(fn)
+        def run(self, *args):
+            try:
+                return fn(self, *args)
+            except Exception as exc:                  # noqa: B902 - the node must live on
+                self._internal_error(kind, exc)
+                return None
+        return run
+    return wrap
 
 
 class HairSimNode(Node):
@@ -56,24 +99,35 @@ class HairSimNode(Node):
         super().__init__('hair_sim', **kwargs)
         self._specs = all_parameters()
         for name, (default, description, rng) in self._specs.items():
-            self.declare_parameter(name, default, _descriptor(name, default, description, rng))
-        self.counts = {'poses': 0, 'poses_rejected': 0, 'wrong_frame': 0, 'wind': 0,
-                       'wind_rejected': 0, 'wind_clamped': 0, 'params_refused': 0,
-                       'overruns': 0, 'published': 0}
-        physics = self._physics_params()
-        style = self._load(self.get_parameter('hairstyle').value)
-        self.sim = HairSimulator(style, **physics)
-        self.sim.stability_dt = 1.0 / self._p('sim_rate')
-        problem = stability_problem(self.sim.params, self.sim, self.sim.stability_dt)
+            self.declare_parameter(name, default, _descriptor(default, description, rng))
+        self.counts = Counter({'poses': 0, 'wrong_frame': 0, 'wind': 0, 'wind_rejected': 0,
+                               'wind_clamped': 0, 'params_refused': 0, 'overruns': 0,
+                               'published': 0, 'markers_published': 0})
+        self.refused = Counter()          # refused inputs by kind (in /diagnostics)
+        self.errors = Counter()           # unexpected errors caught, by callback
+        self._validated = None            # (parameters, derived values) from on_set
+        style = self._read_style(self._p('hairstyle'), self._p('hairstyle_dirs'),
+                                 self._rates())
+        sim = HairSimulator(style, **self._physics_params())
+        sim.stability_dt = 1.0 / self._p('sim_rate')
+        problem = stability_problem(sim.params, sim, sim.stability_dt)
         if problem:
             raise ValueError('physics parameters refused: %s' % problem)
+        self.scene = Scene(1, sim, HairRenderer.for_simulator(sim))
+        self._committed = 0               # seq of the last build job swapped in
         self._encoder = None
+        self._encoder_key = None
         self._mesh_count = 0
         self._clock_last = None
         self._acc = 0.0
         self.meshcat = None
         self.meshcat_url = None
-        self.publish_ms = deque(maxlen=2000)         # recent publish callback durations
+        self.publish_ms = deque(maxlen=2000)          # publish callback durations
+        self.latency_ms = deque(maxlen=LATENCY_WINDOW)  # pose stamp -> publish
+        self._last_publish = None
+        self.publish_gap_ms = 0.0                      # longest gap between publishes
+        self._tf_pub = None
+        self.builder = SceneBuilder()
 
         self.create_subscription(PoseStamped, 'head_pose', self._on_pose,
                                  qos_profile_sensor_data)
@@ -83,105 +137,316 @@ class HairSimNode(Node):
         self.pub_mesh = self.create_publisher(HairMesh, 'hair_mesh', reliable)
         self.pub_state = self.create_publisher(HairState, 'hair_state', reliable)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self._make_tf_publisher()
+        # The build services wait (as coroutines) for the worker while the timers run on:
+        # they need a callback group of their own, one that lets several wait at once.
+        services = ReentrantCallbackGroup()
         self.create_service(Trigger, '~/reset', self._on_reset)
-        self.create_service(LoadHairstyle, '~/load_hairstyle', self._on_load)
-        self.create_service(EditControlPoint, '~/edit_control_point', self._on_edit)
-        self.create_service(SaveHairstyle, '~/save_hairstyle', self._on_save)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self._step_timer = self.create_timer(1.0 / self._p('frame_rate'), self._on_frame)
-        self._pub_timer = self.create_timer(1.0 / self._p('publish_rate'), self._on_publish)
+        self.create_service(LoadHairstyle, '~/load_hairstyle', self._on_load,
+                            callback_group=services)
+        self.create_service(EditControlPoint, '~/edit_control_point', self._on_edit,
+                            callback_group=services)
+        self.create_service(SaveHairstyle, '~/save_hairstyle', self._on_save,
+                            callback_group=services)
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self.frame_timer = self.create_timer(1.0 / self._p('frame_rate'), self._on_frame)
+        self.publish_timer = self.create_timer(1.0 / self._p('publish_rate'), self._on_publish)
+        self._markers_due = 0.0            # markers go out from the publish tick when due
         self.create_timer(1.0, self._on_diagnostics)
         if self._p('meshcat.enabled'):
             self._start_meshcat()
+        strips = sim.strips
         self.get_logger().info('hair_sim: %s, %d strips, %d strands x %d vertices'
-                               % (style.name, self.sim.strips.n_strips,
-                                  self.sim.strips.n_strands, self.sim.strips.n_vertices))
+                               % (style.name, strips.n_strips, strips.n_strands,
+                                  strips.n_vertices))
 
-    # -------------------------------------------------------------- parameters
+    # -------------------------------------------------------------- state
+    @property
+    def sim(self):
+        """Return the running simulator (of the current scene)."""
+        return self.scene.sim
+
+    @property
+    def head_frame(self):
+        """Return this avatar's head frame (the parameter, or the head file's frame_id)."""
+        return self._p('head_frame') or self.sim.head.frame_id
+
     def _p(self, name):
         return self.get_parameter(name).value
 
+    def _rates(self, overrides=None):
+        v = dict(sim_rate=self._p('sim_rate'), publish_rate=self._p('publish_rate'))
+        v.update(overrides or {})
+        return v
+
     def _physics_params(self, overrides=None):
-        values = {}
-        for name in self._specs:
-            if name.startswith(PHYSICS):
-                values[name[len(PHYSICS):]] = self._p(name)
+        values = {name[len(PHYSICS):]: self._p(name) for name in self._specs
+                  if name.startswith(PHYSICS)}
         values.update(overrides or {})
         return PhysicsParams().replaced(**values).__dict__
 
-    def _on_set_parameters(self, params):
-        physics = {}
-        for prm in params:
-            if prm.name not in self._specs:
-                continue
-            default, _, rng = self._specs[prm.name]
-            value = prm.value
-            if isinstance(default, float) and isinstance(value, int) \
-                    and not isinstance(value, bool):
-                value = float(value)
-            if type(value) is not type(default):
-                return self._refuse('%s must be %s, not %s' % (
-                    prm.name, type(default).__name__, type(value).__name__))
+    def _refuse(self, kind, reason, log=True):
+        """Count a refused input of `kind` and log why (throttled); return the reason."""
+        self.refused[kind] += 1
+        if log:
+            self.get_logger().warning('%s refused: %s' % (kind, _short(reason)),
+                                      throttle_duration_sec=2.0)
+        return _short(reason)
+
+    def _internal_error(self, where, exc):
+        self.errors[where] += 1
+        self.get_logger().error('%s: unexpected %s: %s (counted; the node goes on)\n%s'
+                                % (where, type(exc).__name__, _short(exc),
+                                   ''.join(traceback.format_exception(exc))[-2000:]),
+                                throttle_duration_sec=5.0)
+
+    # -------------------------------------------------------------- parameters
+    def _validate_parameters(self, params):
+        """on_set: check the whole set against the running scene; change nothing here."""
+        try:
+            return self._validate_parameters_unsafe(params)
+        except Exception as exc:                      # noqa: B902
+            self._internal_error('parameters', exc)
+            return self._param_refused('internal error: %s' % exc)
+
+    def _param_refused(self, reason):
+        self.counts['params_refused'] += 1
+        return SetParametersResult(successful=False, reason=self._refuse('parameter', reason))
+
+    def _validate_parameters_unsafe(self, params):
+        new = {p.name: p.value for p in params if p.name in self._specs}
+        if not new:
+            return SetParametersResult(successful=True)
+        for name, value in new.items():
+            default = self._specs[name][0]
             if isinstance(value, float) and not math.isfinite(value):
-                return self._refuse('%s must be finite' % prm.name)
-            if rng is not None and not isinstance(value, (bool, str, list)) \
-                    and not rng[0] <= value <= rng[1]:
-                return self._refuse('%s = %r is outside [%g, %g]' % (prm.name, value, *rng))
-            if prm.name == 'viewpoint' and (len(value) != 3 or not all(
-                    math.isfinite(v) for v in value)):
-                return self._refuse('viewpoint must be 3 finite numbers')
-            if prm.name.startswith(PHYSICS):
-                physics[prm.name[len(PHYSICS):]] = value
-        sim_rate = next((p.value for p in params if p.name == 'sim_rate'), self._p('sim_rate'))
-        if physics or any(p.name == 'sim_rate' for p in params):
+                return self._param_refused('%s must be finite' % name)
+            if isinstance(default, str) and name not in ('hairstyle', 'meshcat.zmq_url') \
+                    and value and not fields._FRAME.match(value):
+                return self._param_refused('%s %r is not a valid frame name' % (name, value))
+        if 'viewpoint' in new:
             try:
-                new = PhysicsParams().replaced(**dict(self._physics_params(), **physics))
-            except ValueError as exc:
-                return self._refuse(str(exc))
-            problem = stability_problem(new, self.sim, 1.0 / float(sim_rate))
-            if problem:
-                return self._refuse(problem)
-            self.sim.stability_dt = 1.0 / float(sim_rate)
-            if physics:
-                self.sim.set_params(**physics)
-        changed = {p.name: p.value for p in params}
-        if 'hairstyle' in changed:
+                vp = [float(v) for v in new['viewpoint']]
+            except (TypeError, ValueError):
+                vp = []
+            if len(vp) != 3 or not all(math.isfinite(v) and abs(v) < 1e3 for v in vp):
+                return self._param_refused('viewpoint must be 3 finite numbers (m)')
+        if 'hairstyle_dirs' in new:
+            bad = [d for d in new['hairstyle_dirs'] if d != '' and not _is_dir(d)]
+            if bad or not new['hairstyle_dirs']:
+                return self._param_refused('hairstyle_dirs: %s is not a directory'
+                                           % (bad[0] if bad else '(none given)'))
+        if 'meshcat.zmq_url' in new and new['meshcat.zmq_url'] and (
+                not new['meshcat.zmq_url'].startswith('tcp://')
+                or len(new['meshcat.zmq_url']) > 200):
+            return self._param_refused('meshcat.zmq_url must be empty or tcp://host:port')
+        physics = {k[len(PHYSICS):]: v for k, v in new.items() if k.startswith(PHYSICS)}
+        rates = self._rates({k: new[k] for k in ('sim_rate', 'publish_rate') if k in new})
+        try:
+            physics_new = PhysicsParams().replaced(**dict(self._physics_params(), **physics))
+        except ValueError as exc:
+            return self._param_refused(str(exc))
+        style = None
+        if 'hairstyle' in new:
             try:
-                style = self._load(changed['hairstyle'], changed.get('hairstyle_dirs'))
-                self.sim.set_style(style)
-                self._encoder = None
+                style = self._read_style(new['hairstyle'], new.get(
+                    'hairstyle_dirs', self._p('hairstyle_dirs')), rates)
+                rest = build_strips(style).rest
+                lengths = np.linalg.norm(np.diff(rest, axis=1), axis=2)
             except (HairstyleError, ValueError, OSError) as exc:
-                return self._refuse('hairstyle: %s' % exc)
-        for name, value in changed.items():
-            if name == 'frame_rate':
-                self._step_timer.timer_period_ns = int(1e9 / value)
-            elif name == 'publish_rate':
-                self._pub_timer.timer_period_ns = int(1e9 / value)
-            elif name == 'meshcat.rate' and self.meshcat is not None:
-                self.meshcat.rate = float(value)
+                return self._param_refused('hairstyle: %s' % exc)
+            problem = stability_problem(physics_new, lengths, 1.0 / rates['sim_rate'])
+            if problem:
+                return self._param_refused('hairstyle %s: %s' % (style.name, problem))
+        elif 'sim_rate' in new or 'publish_rate' in new:
+            why = budget_problem(self.sim.style, **rates)
+            if why:
+                return self._param_refused(why)
+        if physics or 'sim_rate' in new:
+            problem = stability_problem(physics_new, self.sim, 1.0 / rates['sim_rate'])
+            if problem:
+                return self._param_refused(problem)
+        self._validated = (params_key(params), style)
+        return SetParametersResult(successful=True)
+
+    @guarded('parameters')
+    def _apply_parameters(self, params):
+        """post_set: apply a set that on_set accepted (all of it)."""
+        changed = {p.name: p.value for p in params if p.name in self._specs}
+        validated = self._validated
+        self._validated = None
+        physics = {k[len(PHYSICS):]: v for k, v in changed.items() if k.startswith(PHYSICS)}
+        if 'sim_rate' in changed:
+            self.sim.stability_dt = 1.0 / float(changed['sim_rate'])
+        if physics:
+            self.sim.set_params(**physics)
+        if 'hairstyle' in changed:
+            style = validated[1] if validated and validated[0] == params_key(params) else None
+            if style is None:
+                style = self._read_style(changed['hairstyle'], self._p('hairstyle_dirs'),
+                                         self._rates())
+            self._submit('hairstyle', lambda job: self._build_scene(style, 'loaded'), None)
+        timers = {'frame_rate': self.frame_timer, 'publish_rate': self.publish_timer}
+        for name, timer in timers.items():
+            if name in changed:
+                timer.timer_period_ns = int(1e9 / changed[name])
+        if self.meshcat is not None and ('publish_rate' in changed or 'meshcat.rate' in changed):
+            self.meshcat.rate = self._meshcat_rate()
         if 'meshcat.enabled' in changed or 'meshcat.zmq_url' in changed:
-            enabled = changed.get('meshcat.enabled', self._p('meshcat.enabled'))
             if self.meshcat is not None:
                 self.meshcat.stop()
                 self.meshcat = None
-            if enabled:
-                self._start_meshcat(changed.get('meshcat.zmq_url'),
-                                    changed.get('meshcat.rate'))
-        return SetParametersResult(successful=True)
+                self.meshcat_url = None
+            if self._p('meshcat.enabled'):
+                self._start_meshcat()
 
-    def _refuse(self, reason):
-        self.counts['params_refused'] += 1
-        self.get_logger().warning('parameter change refused: %s' % reason)
-        return SetParametersResult(successful=False, reason=reason)
+    # -------------------------------------------------------------- styles
+    def _read_style(self, request, dirs, rates):
+        """Resolve, read and check a style (and its head) inside `dirs`, within the budget."""
+        path = resolve_style_path(request, dirs, must_exist=True)
+        style = load_hairstyle(path, search_dirs=dirs)
+        why = budget_problem(style, **rates)
+        if why:
+            raise HairstyleError(why)
+        return style
+
+    def _build_scene(self, style, verb):
+        """Worker thread: build a simulator and renderer for `style`; check them fully."""
+        sim = HairSimulator(style, **self.sim.params.__dict__)
+        sim.stability_dt = self.sim.stability_dt
+        problem = stability_problem(sim.params, sim, sim.stability_dt)
+        if problem:
+            raise HairstyleError('%s: %s' % (style.name, problem))
+        renderer = HairRenderer.for_simulator(sim)
+        return sim, renderer, '%s %s (%d strips)' % (verb, style.name, style.n_strips)
+
+    def _submit(self, kind, fn, future):
+        """Queue a build; return the job, or None (refused) when too many are waiting."""
+        job = self.builder.submit(kind, fn, future)
+        if job is None:
+            self._refuse(kind, '%d builds are already waiting' % self.builder.max_pending)
+        return job
+
+    def _collect_builds(self):
+        """Swap in the newest finished scene; answer every finished job (node thread)."""
+        jobs = []
+        while self.builder.finished:
+            jobs.append(self.builder.finished.popleft())
+        if not jobs:
+            return
+        jobs.sort(key=lambda j: j.seq)
+        newest = max((j for j in jobs if j.error is None and j.result is not None
+                      and j.result[0] is not None), key=lambda j: j.seq, default=None)
+        for job in jobs:
+            if job.error is not None:
+                ok = False
+                if isinstance(job.error, (HairstyleError, ValueError, OSError)):
+                    message = self._refuse(job.kind, job.error)
+                else:
+                    self._internal_error('build ' + job.kind, job.error)
+                    message = 'internal error: %s' % _short(job.error)
+            elif job.result[0] is None:                  # no new scene (a save)
+                ok, message = True, job.result[2]
+            elif job is newest and job.seq > self._committed:
+                ok, message = self._swap(job)
+            else:
+                ok, message = True, '%s; superseded by a later change' % job.result[2]
+            if job.future is not None:
+                job.future.set_result((ok, message))
+            elif not ok:
+                self.get_logger().error('%s: %s' % (job.kind, message))
+
+    def _swap(self, job):
+        sim, renderer, message = job.result
+        old = self.sim
+        problem = stability_problem(old.params, sim, old.stability_dt) or \
+            budget_problem(sim.style, **self._rates())
+        if problem:
+            self.builder.latest_style = None          # edits start from the running style
+            return False, self._refuse(job.kind, problem)
+        sim.adopt(old)
+        self.scene = Scene(self.scene.version + 1, sim, renderer)
+        self._committed = job.seq
+        if self.meshcat is not None:
+            self.meshcat.set_head(sim.head)
+        self.get_logger().info('%s in %.0f ms' % (message, 1e3 * job.seconds))
+        return True, message
+
+    async def _await_job(self, kind, fn):
+        future = Future()
+        job = self._submit(kind, fn, future)
+        if job is None:
+            return False, 'busy: %d builds are already waiting' % self.builder.max_pending
+        return await future
+
+    # -------------------------------------------------------------- services
+    async def _on_load(self, request, response):
+        dirs = list(self._p('hairstyle_dirs'))
+        rates = self._rates()
+        path = request.path
+
+        def build(job):
+            return self._build_scene(self._read_style(path, dirs, rates), 'loaded')
+        return await self._answer('load_hairstyle', build, response)
+
+    async def _on_edit(self, request, response):
+        pos = request.position
+        xyz = (pos.x, pos.y, pos.z)
+        rates = self._rates()
+        index = (request.patch, request.control_hair, request.control_point)
+
+        def build(job):
+            style = self._latest_style().with_control_point(*index, xyz)
+            why = budget_problem(style, **rates)
+            if why:
+                raise HairstyleError(why)
+            return self._build_scene(style, 're-tessellated')
+        return await self._answer('edit_control_point', build, response)
+
+    async def _on_save(self, request, response):
+        dirs = list(self._p('hairstyle_dirs'))
+        target = request.path
+
+        def save(job):
+            path = resolve_style_path(target, dirs, must_exist=False)
+            style = self._latest_style()
+            save_hairstyle(style, path)
+            return None, None, 'saved %s to %s' % (style.name, path)
+        return await self._answer('save_hairstyle', save, response)
+
+    async def _answer(self, kind, fn, response):
+        try:
+            response.success, response.message = await self._await_job(kind, fn)
+        except Exception as exc:                      # noqa: B902
+            self._internal_error(kind, exc)
+            response.success, response.message = False, 'internal error: %s' % _short(exc)
+        return response
+
+    def _latest_style(self):
+        """Worker thread: the style edits and saves start from (after the queued builds)."""
+        return self.builder.latest_style or self.sim.style
+
+    def _on_reset(self, request, response):
+        try:
+            self.sim.reset(clock=True)
+            response.success = True
+            response.message = 'hair reset to its rest shape; the pose clock re-anchors on ' \
+                'the next pose'
+        except Exception as exc:                      # noqa: B902
+            self._internal_error('reset', exc)
+            response.success, response.message = False, 'internal error: %s' % _short(exc)
+        return response
 
     # -------------------------------------------------------------- inputs
+    @guarded('head_pose')
     def _on_pose(self, msg):
         frame = msg.header.frame_id
+        self.counts['poses'] += 1
         if frame not in ('', self._p('world_frame')):
             self.counts['wrong_frame'] += 1
-            self.get_logger().warning('head_pose in frame %r refused (expected %r)'
-                                      % (frame, self._p('world_frame')),
-                                      throttle_duration_sec=5.0)
+            self._refuse('pose_wrong_frame', 'head_pose in frame %r (expected %r)'
+                         % (frame[:100], self._p('world_frame')))
             return
         st = msg.header.stamp
         t = st.sec + st.nanosec * 1e-9
@@ -189,20 +454,28 @@ class HairSimNode(Node):
             t = self.get_clock().now().nanoseconds * 1e-9
         p, q = msg.pose.position, msg.pose.orientation
         verdict = self.sim.set_head_pose(t, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
-        self.counts['poses'] += 1
         if verdict in ('invalid', 'repeated', 'out_of_order'):
-            self.counts['poses_rejected'] += 1
-            self.get_logger().warning('head_pose refused: %s' % verdict,
-                                      throttle_duration_sec=5.0)
+            self._refuse('pose_' + verdict, 'head_pose %s' % verdict.replace('_', ' '))
+        elif self._tf_pub is not None and self._p('publish_tf'):
+            self._publish_tf(msg)
 
+    @guarded('wind')
     def _on_wind(self, msg):
-        v = (msg.velocity.x, msg.velocity.y, msg.velocity.z)
+        v = np.array([msg.velocity.x, msg.velocity.y, msg.velocity.z])
         self.counts['wind'] += 1
+        frame = msg.header.frame_id
+        if frame == self.head_frame:
+            v = self.sim.head_pose[0] @ v                 # head frame -> world
+        elif frame not in ('', self._p('world_frame')):
+            self.counts['wind_rejected'] += 1
+            self._refuse('wind_wrong_frame', 'wind in frame %r (the world is %r, the head %r)'
+                         % (frame[:100], self._p('world_frame'), self.head_frame))
+            return
         try:
             verdict = self.sim.set_wind(v, msg.turbulence, msg.seed)
         except ValueError as exc:
             self.counts['wind_rejected'] += 1
-            self.get_logger().warning('wind refused: %s' % exc, throttle_duration_sec=5.0)
+            self._refuse('wind_invalid', exc)
             return
         if verdict == 'clamped':
             self.counts['wind_clamped'] += 1
@@ -210,7 +483,13 @@ class HairSimNode(Node):
                                       throttle_duration_sec=5.0)
 
     # -------------------------------------------------------------- stepping
+    @guarded('frame')
     def _on_frame(self):
+        self._collect_builds()
+        self._advance()
+
+    def _advance(self):
+        """Step the solver up to the node clock (at most max_steps_per_frame steps)."""
         now = self.get_clock().now().nanoseconds * 1e-9
         if self._clock_last is None:
             self._clock_last = now
@@ -227,61 +506,121 @@ class HairSimNode(Node):
             self._acc = 0.0
         else:
             self._acc -= n * h
+        sim = self.sim
         for _ in range(n):
-            self.sim.step(h)
+            sim.step(h)
+        if n and not np.all(np.isfinite(sim.pos)):       # a last line; never seen
+            self.refused['nonfinite_state_reset'] += 1
+            self.get_logger().error('non-finite hair state: reset to the rest shape')
+            sim.reset()
 
     # -------------------------------------------------------------- outputs
+    def _stamp_now(self):
+        """Return (sec, nanosec) of the head pose the current state was computed for."""
+        now = self.get_clock().now().nanoseconds * 1e-9
+        stamp = self.sim.stamp_at()
+        if stamp is None:
+            return _stamp(now)
+        self.latency_ms.append(1e3 * (now - stamp))
+        return _stamp(stamp)
+
+    @guarded('publish')
     def _on_publish(self):
         t0 = time.perf_counter()
-        self._publish()
-        self.publish_ms.append(1e3 * (time.perf_counter() - t0))
-
-    def _publish(self):
-        sim = self.sim
-        viewpoint = self._p('viewpoint') if self._p('use_viewpoint') else None
-        mesh = sim.mesh(viewpoint=viewpoint)
-        R, p = sim.head_pose
-        sec, nsec = _stamp(self.get_clock().now().nanoseconds * 1e-9)
-        frame = sim.head.frame_id
-        if self._p('publish_markers'):
-            enc = self._encoder
-            if enc is None or enc.layout.tris_per_strip != mesh.tris_per_strip \
-                    or enc.texture_id != mesh.texture_id:
-                full = mesh if mesh.n_strips == sim.strips.n_strips else sim.mesh()
-                layout = MarkerLayout(sim.strips.n_strips, mesh.tris_per_strip, full)
-                enc = self._encoder = MarkerEncoder(layout, mesh.texture_id, mesh.texture_png,
-                                                    frame)
-            self.pub_markers.publish(enc.encode(mesh, R, p, sec, nsec))
+        if self._last_publish is not None:
+            self.publish_gap_ms = max(self.publish_gap_ms, 1e3 * (t0 - self._last_publish))
+        self._last_publish = t0
+        self._advance()                       # publish the state of now, not of a frame ago
+        scene = self.scene
+        sim = scene.sim
+        mesh = scene.mesh(self._viewpoint())
+        sec, nsec = self._stamp_now()
+        world = self._p('world_frame')
         if self._p('publish_mesh'):
             with_tex = self._mesh_count % self._p('texture_every') == 0
-            self.pub_mesh.publish(hair_mesh_cdr(mesh, mesh.vertices, self._p('world_frame'),
-                                                sec, nsec, with_tex))
+            self.pub_mesh.publish(hair_mesh_cdr(mesh, mesh.vertices, world, sec, nsec, with_tex))
             self._mesh_count += 1
         if self._p('publish_state'):
             self.pub_state.publish(hair_state_cdr(sim.pos, sim.sleeping, sim.last_step_time,
-                                                  self._p('world_frame'), sec, nsec))
+                                                  world, sec, nsec))
         if self.meshcat is not None:
-            self.meshcat.submit(mesh, (R, p))
+            self.meshcat.submit(mesh, sim.head_pose)
         self.counts['published'] += 1
+        self.publish_ms.append(1e3 * (time.perf_counter() - t0))
+        if time.monotonic() >= self._markers_due:          # the big one last, at its own rate
+            self._markers_due = max(self._markers_due + 1.0 / self._p('marker_rate'),
+                                    time.monotonic() - 0.5 / self._p('publish_rate'))
+            self._publish_markers(sec, nsec)
 
+    def _viewpoint(self):
+        return [float(v) for v in self._p('viewpoint')] if self._p('use_viewpoint') else None
+
+    def _publish_markers(self, sec, nsec):
+        if not self._p('publish_markers'):
+            return
+        scene = self.scene
+        mesh = scene.mesh(self._viewpoint())
+        in_head = self._p('markers_in_head_frame')
+        frame = self.head_frame if in_head else self._p('world_frame')
+        key = (scene.version, mesh.tris_per_strip, mesh.texture_id, frame)
+        if self._encoder_key != key:
+            full = mesh if mesh.n_strips == scene.renderer.n_strips else scene.mesh()
+            layout = MarkerLayout(scene.renderer.n_strips, mesh.tris_per_strip, full)
+            self._encoder = MarkerEncoder(layout, mesh.texture_id, mesh.texture_png, frame,
+                                          frame_locked=in_head)
+            if self._encoder_key is not None:            # the layout changed: clear RViz
+                self.pub_markers.publish(delete_all_markers(frame, sec, nsec))
+            self._encoder_key = key
+        R, p = scene.sim.head_pose if in_head else (np.eye(3), np.zeros(3))
+        self.pub_markers.publish(self._encoder.encode(mesh, R, p, sec, nsec))
+        self.counts['markers_published'] += 1
+
+    def _make_tf_publisher(self):
+        try:
+            from tf2_msgs.msg import TFMessage
+        except ImportError:                  # a full ROS 2 install has it; the wheels do not
+            return
+        qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        self._tf_pub = self.create_publisher(TFMessage, '/tf', qos)
+        self._tf_type = TFMessage
+
+    def _publish_tf(self, pose_msg):
+        self._tf_pub.publish(self._tf_type(transforms=[head_transform(
+            pose_msg, self._p('world_frame'), self.head_frame)]))
+
+    @guarded('diagnostics')
     def _on_diagnostics(self):
         sim = self.sim
-        st = DiagnosticStatus(name='hair_sim: solver', hardware_id='hair_sim')
+        fqn = self.get_fully_qualified_name()
+        st = DiagnosticStatus(name='hair_sim: %s' % fqn, hardware_id=fqn)
         st.level = DiagnosticStatus.OK
         st.message = 'sleeping' if sim.sleeping else 'simulating'
         values = {'step_time_ms': '%.4f' % (1e3 * sim.last_step_time),
                   'sleeping': str(sim.sleeping), 'strips': str(sim.strips.n_strips),
                   'hairstyle': sim.style.name, 'sim_time': '%.3f' % sim.time,
-                  'min_sin_theta': '%.3f' % sim.min_sin_theta}
+                  'min_sin_theta': '%.3f' % sim.min_sin_theta,
+                  'scene_version': str(self.scene.version),
+                  'builds_pending': str(self.builder.pending),
+                  'publish_gap_max_ms': '%.1f' % self.publish_gap_ms}
         values.update({k: str(v) for k, v in self.counts.items()})
         values.update({'pose_' + k: str(v) for k, v in sim.motion.counts.items()})
         values.update({k: str(v) for k, v in sim.counters.items()})
+        values.update({'refused_' + k: str(v) for k, v in sorted(self.refused.items())})
+        values.update({'error_' + k: str(v) for k, v in sorted(self.errors.items())})
+        values['refused_total'] = str(sum(self.refused.values()))
         if self.publish_ms:
             values['publish_ms_median'] = '%.3f' % float(np.median(self.publish_ms))
+        if self.latency_ms:
+            lat = np.asarray(self.latency_ms)
+            values['latency_ms_p50'] = '%.1f' % float(np.percentile(lat, 50))
+            values['latency_ms_p95'] = '%.1f' % float(np.percentile(lat, 95))
         if self.meshcat is not None:
             values['meshcat_connected'] = str(self.meshcat.connected)
             values['meshcat_frames'] = str(self.meshcat.frames_sent)
             values['meshcat_url'] = self.meshcat_url or ''
+        if self.errors:
+            st.level = DiagnosticStatus.WARN
+            st.message += '; %d unexpected error(s) caught' % sum(self.errors.values())
         if not np.all(np.isfinite(sim.pos)):
             st.level = DiagnosticStatus.ERROR
             st.message = 'non-finite state'
@@ -291,84 +630,69 @@ class HairSimNode(Node):
         arr.status = [st]
         self.pub_diag.publish(arr)
 
-    # -------------------------------------------------------------- services
-    def _load(self, request, dirs=None):
-        dirs = self._p('hairstyle_dirs') if dirs is None else dirs
-        return load_hairstyle(resolve_style_path(request, dirs, must_exist=True))
-
-    def _on_reset(self, request, response):
-        self.sim.reset()
-        response.success, response.message = True, 'hair reset to its rest shape'
-        return response
-
-    def _on_load(self, request, response):
-        try:
-            style = self._load(request.path)
-            self.sim.set_style(style)
-            self._encoder = None
-        except (HairstyleError, ValueError, OSError) as exc:
-            response.success, response.message = False, str(exc)
-            self.get_logger().warning('load_hairstyle refused: %s' % exc)
-            return response
-        response.success = True
-        response.message = 'loaded %s (%d strips)' % (style.name, self.sim.strips.n_strips)
-        return response
-
-    def _on_edit(self, request, response):
-        pos = request.position
-        try:
-            style = self.sim.style.with_control_point(request.patch, request.control_hair,
-                                                      request.control_point,
-                                                      (pos.x, pos.y, pos.z))
-            self.sim.set_style(style)
-            self._encoder = None
-        except (HairstyleError, ValueError) as exc:
-            response.success, response.message = False, str(exc)
-            return response
-        response.success, response.message = True, 're-tessellated %s' % style.name
-        return response
-
-    def _on_save(self, request, response):
-        try:
-            path = resolve_style_path(request.path, self._p('hairstyle_dirs'),
-                                      must_exist=False)
-            save_hairstyle(self.sim.style, path)
-        except (HairstyleError, ValueError, OSError) as exc:
-            response.success, response.message = False, str(exc)
-            self.get_logger().warning('save_hairstyle refused: %s' % exc)
-            return response
-        response.success, response.message = True, 'saved %s' % path
-        return response
-
     # -------------------------------------------------------------- meshcat
-    def _start_meshcat(self, zmq_url=None, rate=None):
+    def _meshcat_rate(self):
+        return min(float(self._p('meshcat.rate')), float(self._p('publish_rate')))
+
+    def _start_meshcat(self):
         from hair_sim.sinks.meshcat_sink import MeshcatSink
 
         def on_url(url):
             self.meshcat_url = url
             self.get_logger().info('meshcat URL %s' % url)
 
-        self.meshcat = MeshcatSink(
-            self.sim.head, rate=self._p('meshcat.rate') if rate is None else rate,
-            zmq_url=self._p('meshcat.zmq_url') if zmq_url is None else zmq_url,
-            logger=self.get_logger(), on_url=on_url).start()
+        self.meshcat = MeshcatSink(self.sim.head, rate=self._meshcat_rate(),
+                                   zmq_url=self._p('meshcat.zmq_url'),
+                                   logger=self.get_logger(), on_url=on_url).start()
 
     def destroy_node(self):
-        """Stop the meshcat worker, then destroy the node."""
+        """Stop the workers, then destroy the node."""
         if self.meshcat is not None:
             self.meshcat.stop()
             self.meshcat = None
+        self.builder.stop()
         super().destroy_node()
 
 
+def params_key(params):
+    """Return a comparable key of a parameter list (names and values)."""
+    return tuple((p.name, repr(p.value)) for p in params)
+
+
+def head_transform(pose_msg, world_frame, head_frame):
+    """Return the TransformStamped world_frame -> head_frame of a head pose message."""
+    from geometry_msgs.msg import TransformStamped
+    tf = TransformStamped()
+    tf.header.stamp = pose_msg.header.stamp
+    tf.header.frame_id = world_frame
+    tf.child_frame_id = head_frame
+    p, q = pose_msg.pose.position, pose_msg.pose.orientation
+    tf.transform.translation.x, tf.transform.translation.y = p.x, p.y
+    tf.transform.translation.z = p.z
+    tf.transform.rotation = q
+    return tf
+
+
+def _is_dir(path):
+    try:
+        return os.path.isdir(allowed_dirs([path])[0])
+    except (OSError, ValueError, TypeError):
+        return False
+
+
 def main(args=None):
-    """Run hair_sim_node until Ctrl-C or shutdown."""
-    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    """Run hair_sim_node until Ctrl-C or shutdown; bad input never ends it."""
     rclpy.init(args=args)
     node = None
     try:
         node = HairSimNode()
-        rclpy.spin(node)
+        while rclpy.ok():
+            try:
+                rclpy.spin(node)
+            except (KeyboardInterrupt, ExternalShutdownException):
+                break
+            except Exception as exc:                  # noqa: B902 - log, count, spin on
+                node._internal_error('executor', exc)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (HairstyleError, ValueError) as exc:

@@ -4,17 +4,28 @@ from dataclasses import fields
 
 from hair_sim.physics.params import PhysicsParams, RANGES
 
+PHYSICS = 'physics.'
+
 # name: (default, description, (low, high) or None)
 NODE_PARAMETERS = {
     'hairstyle': ('thesis_long', 'hairstyle to load: a name or a .yaml path relative to one '
                   'of hairstyle_dirs', None),
-    'hairstyle_dirs': ([''], 'directories load/save may touch; "" is the shipped '
-                       'config/hairstyles', None),
+    'hairstyle_dirs': ([''], 'directories load/save (and a style\'s head file) may touch; '
+                       '"" is the shipped config/hairstyles', None),
     'sim_rate': (240.0, 'solver steps per simulated second (Hz)', (30.0, 4000.0)),
     'frame_rate': (60.0, 'how often the solver catches up with the clock (Hz)', (5.0, 500.0)),
     'max_steps_per_frame': (16, 'steps at most per frame; time beyond is dropped', (1, 200)),
-    'publish_rate': (30.0, 'rate of hair_markers, hair_mesh, hair_state (Hz)', (0.5, 240.0)),
-    'world_frame': ('world', 'frame of head poses and wind', None),
+    'publish_rate': (30.0, 'rate of hair_mesh and hair_state, and of meshcat frames at most '
+                     '(Hz)', (0.5, 240.0)),
+    'marker_rate': (10.0, 'rate of hair_markers (Hz, at most publish_rate); a MarkerArray is '
+                    'large', (0.5, 240.0)),
+    'world_frame': ('world', 'frame of head poses, wind and world-frame output', None),
+    'head_frame': ('', 'frame of this avatar\'s head (TF child, head-frame markers); "" takes '
+                   'the head file\'s frame_id', None),
+    'markers_in_head_frame': (False, 'hair_markers in head_frame (frame_locked; needs the '
+                              'head in TF) instead of world_frame', None),
+    'publish_tf': (True, 'publish world_frame -> head_frame on /tf from the pose stream '
+                   '(when tf2_msgs is installed)', None),
     'use_viewpoint': (False, 'cull strips that cannot be seen from viewpoint', None),
     'viewpoint': ([0.8, 0.0, 0.0], 'eye position for culling, world frame (m)', None),
     'publish_markers': (True, 'publish hair_markers (MarkerArray)', None),
@@ -32,8 +43,8 @@ def physics_parameters():
     out = {}
     defaults = PhysicsParams()
     for f in fields(PhysicsParams):
-        out['physics.' + f.name] = (getattr(defaults, f.name), 'PhysicsParams.%s' % f.name,
-                                    RANGES.get(f.name))
+        out[PHYSICS + f.name] = (getattr(defaults, f.name), 'PhysicsParams.%s' % f.name,
+                                 RANGES.get(f.name))
     return out
 
 

@@ -1,14 +1,16 @@
 """
 MarkerArray sink: textured TRIANGLE_LIST markers, written straight to CDR bytes.
 
-Building geometry_msgs/Point objects costs about a microsecond each (DESIGN.md); the fast
-path writes the serialized MarkerArray with numpy (rclpy's Publisher.publish takes bytes)
-and `build_marker_array` builds the same message the slow way, for tests and reference.
+Building geometry_msgs/Point objects costs about a microsecond each (230 ms for 65k
+points); the fast path writes the serialized MarkerArray with numpy (rclpy's
+Publisher.publish takes bytes) and `build_marker_array` builds the same message the slow
+way, for tests and reference.
 
 Jazzy rules followed: one UV per point, under 65 000 points per marker, a constant
 triangle count per (ns, id) while the LOD is unchanged (strips are grouped into markers
 once; a culled strip's triangles collapse onto its root instead of disappearing), an
-embedded PNG texture (texture_resource 'embedded://...', format 'png'), head frame id.
+embedded PNG texture (texture_resource 'embedded://...', format 'png'); points in the world
+frame, or in the head frame with frame_locked set; DELETEALL before a new layout.
 """
 
 import struct
@@ -84,7 +86,7 @@ def marker_geometry(mesh, R, p, layout):
 
 
 def marker_array_cdr(geometry, texture_id, texture_png, frame_id, sec, nanosec,
-                     with_padding=False, offsets=None):
+                     with_padding=False, offsets=None, frame_locked=False):
     """
     Return the serialized MarkerArray of `geometry` (and its padding ranges if asked).
 
@@ -108,7 +110,7 @@ def marker_array_cdr(geometry, texture_id, texture_png, frame_id, sec, nanosec,
         for v in (1.0, 1.0, 1.0, 1.0):               # color: texture as it is
             w.float32(v)
         w.time(0, 0)                                 # lifetime: for ever
-        w.boolean(False)                             # frame_locked
+        w.boolean(frame_locked)                      # frame_locked
         start = w.array(np.asarray(points, dtype='<f8'), 8)   # geometry_msgs/Point[]
         w.uint32(0)                                  # colors[]
         w.string(resource)
@@ -135,9 +137,10 @@ class MarkerEncoder:
     UVs); a frame writes only its stamps and points.
     """
 
-    def __init__(self, layout, texture_id, texture_png, frame_id):
+    def __init__(self, layout, texture_id, texture_png, frame_id, frame_locked=False):
         self.layout = layout
         self.texture_id = texture_id
+        self.frame_id = frame_id
         nt3 = 3 * layout.tris_per_strip
         self.points = np.zeros((layout.n_strips * nt3, 3))
         uvs = layout.uv_points if layout.uv_points is not None else np.zeros(
@@ -146,7 +149,8 @@ class MarkerEncoder:
                for g in layout.groups]
         self.offsets = []
         self.template = bytearray(marker_array_cdr(geo, texture_id, texture_png, frame_id,
-                                                   0, 0, offsets=self.offsets))
+                                                   0, 0, offsets=self.offsets,
+                                                   frame_locked=frame_locked))
         self._slot = np.full(layout.n_strips, -1, dtype=np.int64)
 
     def encode(self, mesh, R, p, sec, nanosec):
@@ -168,7 +172,19 @@ class MarkerEncoder:
         return bytes(buf)
 
 
-def build_marker_array(geometry, texture_id, texture_png, frame_id, sec, nanosec):
+def delete_all_markers(frame_id, sec, nanosec):
+    """Return a MarkerArray that clears every marker (sent before a new layout)."""
+    from visualization_msgs.msg import Marker, MarkerArray
+    m = Marker()
+    m.header.frame_id = frame_id
+    m.header.stamp.sec, m.header.stamp.nanosec = sec, nanosec
+    m.ns = NAMESPACE
+    m.action = Marker.DELETEALL
+    return MarkerArray(markers=[m])
+
+
+def build_marker_array(geometry, texture_id, texture_png, frame_id, sec, nanosec,
+                       frame_locked=False):
     """Build the same MarkerArray with message objects (slow path; reference for tests)."""
     from geometry_msgs.msg import Point
     from visualization_msgs.msg import Marker, MarkerArray, UVCoordinate
@@ -183,6 +199,7 @@ def build_marker_array(geometry, texture_id, texture_png, frame_id, sec, nanosec
         m.type = Marker.TRIANGLE_LIST
         m.action = Marker.ADD
         m.pose.orientation.w = 1.0
+        m.frame_locked = frame_locked
         m.scale.x = m.scale.y = m.scale.z = 1.0
         m.color.r = m.color.g = m.color.b = m.color.a = 1.0
         m.points = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in points]

@@ -141,6 +141,7 @@ class MeshcatSink:
         self.connected = False
         self._server = None
         self._latest = None
+        self._redraw = False
         self._lock = threading.Lock()
         self._wake = threading.Event()
         self._stop = threading.Event()
@@ -150,6 +151,13 @@ class MeshcatSink:
         """Start the worker thread."""
         self._thread.start()
         return self
+
+    def set_head(self, head):
+        """Draw another head (a new style's) on the next frame."""
+        with self._lock:
+            self.head = head
+            self._redraw = True
+        self._wake.set()
 
     def submit(self, mesh, head_pose):
         """Hand over the newest frame (R, p); older unsent frames are dropped."""
@@ -223,9 +231,10 @@ class MeshcatSink:
         self.frames_sent += 1
 
     def _run(self):
+        from meshcat.commands import Delete
         client = None
         last_try = -1e9
-        last_sent = 0.0
+        due = 0.0                   # when the next frame may go: frames keep `rate` on average
         while not self._stop.is_set():
             self._wake.wait(timeout=0.5)
             self._wake.clear()
@@ -243,17 +252,24 @@ class MeshcatSink:
                     self._warn('meshcat unavailable (%s); ROS topics go on, retrying' % exc)
                     client = None
                     continue
-            wait = 1.0 / self.rate - (time.monotonic() - last_sent)
+            wait = due - time.monotonic()
             if wait > 0:
                 if self._stop.wait(wait):
                     break
             with self._lock:
                 frame, self._latest = self._latest, None
-            if frame is None:
+                redraw, self._redraw = self._redraw, False
+            if frame is None and not redraw:
                 continue
+            start = time.monotonic()
+            # scheduled from when a send starts, not ends; a late frame sets a new pace
+            due = max(due + 1.0 / self.rate, start)
             try:
-                self._send_frame(client, *frame)
-                last_sent = time.monotonic()
+                if redraw:
+                    client.send(Delete(node_path('/hair_sim/head')))
+                    self._draw_static(client)
+                if frame is not None:
+                    self._send_frame(client, *frame)
             except Exception as exc:                      # noqa: B902
                 self.errors += 1
                 self.connected = False

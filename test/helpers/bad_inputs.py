@@ -22,7 +22,11 @@ def main():
     node = rclpy.create_node('bad_input_publisher')
     pose_pub = node.create_publisher(PoseStamped, 'head_pose', qos_profile_sensor_data)
     wind_pub = node.create_publisher(Wind, 'wind', 10)
-    time.sleep(1.5)                                         # let discovery happen
+    deadline = time.monotonic() + 20.0                      # wait until discovery matched
+    while (pose_pub.get_subscription_count() == 0 or wind_pub.get_subscription_count() == 0) \
+            and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.2)
 
     def now():
         return node.get_clock().now().nanoseconds * 1e-9

@@ -5,7 +5,7 @@ import pytest
 
 from hair_sim import DEFAULT_DT, HairSimulator
 from hair_sim.physics import kernels
-from hair_sim.physics.scripts import drive, violent
+from hair_sim.bench.scenarios import drive, violent
 
 
 def world_spheres(sim):

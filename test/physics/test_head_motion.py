@@ -5,7 +5,7 @@ import math
 import numpy as np
 
 from hair_sim import DEFAULT_DT, HairSimulator
-from hair_sim.physics.scripts import quat_from_euler
+from hair_sim.bench.scenarios import quat_from_euler
 
 ID = [0.0, 0.0, 0.0, 1.0]
 

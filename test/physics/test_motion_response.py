@@ -5,7 +5,7 @@ import math
 import numpy as np
 
 from hair_sim import DEFAULT_DT, HairSimulator
-from hair_sim.physics.scripts import drive, quat_from_euler, smoothstep, violent
+from hair_sim.bench.scenarios import drive, quat_from_euler, smoothstep, violent
 
 DT = DEFAULT_DT
 

@@ -8,7 +8,7 @@ import pytest
 
 from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, load_head, paths
 from hair_sim.physics import stability_problem
-from hair_sim.physics.scripts import drive, violent
+from hair_sim.bench.scenarios import drive, violent
 
 STYLES = sorted(glob.glob(os.path.join(paths.hairstyles_dir(), '*.yaml')))
 

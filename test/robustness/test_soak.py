@@ -7,7 +7,7 @@ import numpy as np
 import psutil
 
 from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, paths
-from hair_sim.physics.scripts import demo
+from hair_sim.bench.scenarios import demo
 from hair_sim.sinks.markers import MarkerEncoder, MarkerLayout
 from helpers.ros import spin_until
 
@@ -68,7 +68,7 @@ def test_ten_minutes_of_simulated_demo_motion():
 def test_real_time_run_keeps_its_rate(node_env):
     """The node driven by the demo's head driver for 20 s: steady rate, flat publish cost."""
     from hair_sim_msgs.msg import HairState
-    from hair_sim.ros.demo import HeadDriver
+    from hair_sim.ros.head_driver import HeadDriver
     ctx, ex, node, client = node_env
     driver = HeadDriver(context=ctx)
     ex.add_node(driver)

@@ -1,4 +1,4 @@
-"""Scripted head motions (quaternion xyzw per time) shared by tests, benchmarks and the demo."""
+"""Scripted head motions (quaternion xyzw per time) for tests, benchmarks and the demo driver."""
 
 import math
 

@@ -1,0 +1,94 @@
+"""
+hair_sim_head_driver: a scripted head tracker, as its own process (the demo's driver).
+
+Publishes PoseStamped on head_pose at --rate Hz (nods, turns, a walking bob; stamped with
+the time of the pose) and Wind gusts on wind every few seconds, like a real tracker and
+weather source would. Accepts --ros-args (namespace, remaps) like any ROS 2 program.
+
+    python -m hair_sim.ros.head_driver [--rate HZ] [--frame FRAME] [--ros-args ...]
+"""
+
+import argparse
+import math
+import os
+import sys
+
+from geometry_msgs.msg import PoseStamped
+from hair_sim_msgs.msg import Wind
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+from rclpy.utilities import remove_ros_args
+
+from hair_sim.bench.scenarios import demo as demo_motion
+
+
+class HeadDriver(Node):
+    """Publish the scripted demo head motion and a gust every few seconds."""
+
+    def __init__(self, rate=100.0, frame='world', parent_pid=None, **kwargs):
+        super().__init__('hair_sim_head_driver', **kwargs)
+        self.frame = frame
+        self.parent_pid = parent_pid
+        self.pose_pub = self.create_publisher(PoseStamped, 'head_pose', qos_profile_sensor_data)
+        self.wind_pub = self.create_publisher(Wind, 'wind', 10)
+        self.t0 = self.get_clock().now().nanoseconds * 1e-9
+        self.sent = 0
+        self.create_timer(1.0 / rate, self._pose)
+        self.create_timer(2.0, self._wind)
+        self._gust = 0
+
+    def _pose(self):
+        if self.parent_pid is not None and os.getppid() != self.parent_pid:
+            raise SystemExit(0)                 # the demo that started us is gone
+        now = self.get_clock().now()
+        t = now.nanoseconds * 1e-9 - self.t0
+        p, q = demo_motion(t)
+        msg = PoseStamped()
+        msg.header.stamp = now.to_msg()
+        msg.header.frame_id = self.frame
+        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = map(float, p)
+        (msg.pose.orientation.x, msg.pose.orientation.y, msg.pose.orientation.z,
+         msg.pose.orientation.w) = map(float, q)
+        self.pose_pub.publish(msg)
+        self.sent += 1
+
+    def _wind(self):
+        self._gust += 1
+        w = Wind()
+        w.header.stamp = self.get_clock().now().to_msg()
+        w.header.frame_id = self.frame
+        speed = 0.0 if self._gust % 3 == 0 else 1.5 + 2.5 * abs(math.sin(self._gust))
+        angle = 0.7 * self._gust
+        w.velocity.x, w.velocity.y = speed * math.cos(angle), speed * math.sin(angle)
+        w.turbulence = 0.3
+        w.seed = self._gust
+        self.wind_pub.publish(w)
+
+
+def main(argv=None):
+    """Run the driver until Ctrl-C, shutdown or the parent process (--parent-pid) ends."""
+    argv = sys.argv if argv is None else argv
+    parser = argparse.ArgumentParser(prog='hair_sim_head_driver', description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--rate', type=float, default=100.0, help='poses per second')
+    parser.add_argument('--frame', default='world', help='frame id of poses and wind')
+    parser.add_argument('--parent-pid', type=int, default=None, help=argparse.SUPPRESS)
+    args = parser.parse_args(remove_ros_args(argv)[1:])
+    rclpy.init(args=argv)
+    node = None
+    try:
+        node = HeadDriver(args.rate, args.frame, args.parent_pid)
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException, SystemExit):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
