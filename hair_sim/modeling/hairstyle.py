@@ -219,8 +219,9 @@ def _resolve_head(ref, style_path, search_dirs=None):
     if roots is None:
         raise HairstyleError('head %r not found (looked in %s)' % (ref, ', '.join(
             os.path.normpath(c) for c in candidates)))
+    # the same answer whether a file outside exists or not, and no path of it
     raise HairstyleError('head %r not found in the hairstyle directories or the shipped '
-                         'heads' % ref)
+                         'heads' % os.path.basename(ref))
 
 
 def _parse_control_hairs(hairs, pw):

@@ -92,3 +92,27 @@ def test_jitter_is_smoothed(long_style):
     assert np.all(np.isfinite(moved))
     assert moved.mean() < 0.004, moved.mean()
     assert sim.motion.counts['teleport'] == 0
+
+
+def test_stamps_jumping_back_re_anchor_the_clock(long_style):
+    """
+    A looping bag: stamps 60 s back re-anchor (counted) and the head is followed again.
+
+    A step back under clock_jump_back is only an out-of-order pose.
+    """
+    sim = still_sim(long_style)
+    t = sim.time
+    assert sim.set_head_pose(t + 0.01, [0, 0, 0], ID) == 'ok'
+    assert sim.set_head_pose(t - 0.3, [0, 0, 0], ID) == 'out_of_order'
+    assert sim.set_head_pose(t - 60.0, [0.05, 0, 0], ID) == 'clock_jump'
+    assert sim.motion.counts['clock_jump'] == 1
+    for i in range(1, 241):
+        sim.set_head_pose(t - 60.0 + i / 240, [0.05, 0, 0], ID)
+        sim.step(DEFAULT_DT)
+    R, p = sim.head_pose
+    assert np.allclose(p, [0.05, 0, 0]) and sim.motion.counts['accepted'] > 200
+    stamp = sim.stamp_at()
+    assert abs(stamp - (t - 60.0 + 1.0)) < 0.02       # output stamps follow the new clock
+    sim.reset(clock=True)
+    assert sim.motion.offset is None and sim.stamp_at() is None
+    assert sim.set_head_pose(5.0, [0.05, 0, 0], ID) == 'ok'   # any clock is taken again

@@ -1,0 +1,141 @@
+"""hair_sim_node as a separate process, and a client in this process that talks to it."""
+
+import os
+import subprocess
+import sys
+import threading
+import time
+
+from hair_sim import paths
+
+VENV_BIN = os.path.dirname(sys.executable)
+
+
+class NodeProcess:
+    """Run `hair_sim_node` (the installed script) with the shipped params plus `args`."""
+
+    def __init__(self, tmp_path, args=(), namespace=None, log_name='node.log'):
+        params = os.path.join(paths.config_dir(), 'hair_sim.yaml')
+        cmd = [os.path.join(VENV_BIN, 'hair_sim_node'), '--ros-args', '--params-file', params,
+               '-p', 'hairstyle_dirs:=["", "%s"]' % tmp_path]
+        if namespace:
+            cmd += ['-r', '__ns:=%s' % namespace]
+        cmd += list(args)
+        self.log_path = os.path.join(str(tmp_path), log_name)
+        self.log = open(self.log_path, 'w')
+        self.proc = subprocess.Popen(cmd, stdout=self.log, stderr=subprocess.STDOUT)
+
+    def alive(self):
+        """Return True while the process runs."""
+        return self.proc.poll() is None
+
+    def output(self):
+        """Return what the node printed so far."""
+        self.log.flush()
+        with open(self.log_path) as f:
+            return f.read()
+
+    def stop(self):
+        """Stop the node (SIGINT, then kill); return its exit code."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(2)
+            try:
+                self.proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(timeout=5)
+        self.log.close()
+        return self.proc.returncode
+
+
+class Client:
+    """An rclpy node spun on a background thread: service calls, parameters, subscriptions."""
+
+    def __init__(self, name='hair_sim_test_pipeline'):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import MultiThreadedExecutor
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.executor = MultiThreadedExecutor(num_threads=4, context=self.context)
+        self.executor.add_node(self.node)
+        self._clients = {}
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self._thread.start()
+
+    def call(self, srv_type, name, request, timeout=30.0):
+        """Call a service; return the response, or None when it does not answer in time."""
+        with self._lock:
+            cli = self._clients.get(name)
+            if cli is None:
+                cli = self._clients[name] = self.node.create_client(srv_type, name)
+        if not cli.wait_for_service(timeout_sec=20.0):
+            return None
+        future = cli.call_async(request)
+        end = time.monotonic() + timeout
+        while not future.done() and time.monotonic() < end:
+            time.sleep(0.01)
+        return future.result() if future.done() else None
+
+    def set_parameters(self, node_name, values, atomically=False):
+        """Set parameters {name: value} of node `node_name`; return the result(s)."""
+        from rcl_interfaces.srv import SetParameters, SetParametersAtomically
+        from rclpy.parameter import Parameter
+        params = [Parameter(k, value=v).to_parameter_msg() for k, v in values.items()]
+        if atomically:
+            r = self.call(SetParametersAtomically, node_name + '/set_parameters_atomically',
+                          SetParametersAtomically.Request(parameters=params))
+            return None if r is None else r.result
+        r = self.call(SetParameters, node_name + '/set_parameters',
+                      SetParameters.Request(parameters=params))
+        return None if r is None else r.results
+
+    def get_parameters(self, node_name, names):
+        """Return {name: value} of node `node_name`."""
+        from rcl_interfaces.srv import GetParameters
+        from rclpy.parameter import parameter_value_to_python
+        r = self.call(GetParameters, node_name + '/get_parameters',
+                      GetParameters.Request(names=list(names)))
+        return {n: parameter_value_to_python(v) for n, v in zip(names, r.values)}
+
+    def record(self, msg_type, topic, qos=10, raw=False):
+        """Subscribe; return the list (time.monotonic(), message) arrivals are appended to."""
+        out = []
+        self.node.create_subscription(msg_type, topic,
+                                      lambda m: out.append((time.monotonic(), m)), qos,
+                                      raw=raw)
+        return out
+
+    def close(self):
+        """Shut the client down."""
+        import rclpy
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def wait_for(predicate, timeout):
+    """Poll predicate() until true or timeout; return its last value."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(0.05)
+    return predicate()
+
+
+def rate(arrivals, since):
+    """Return how many records per second arrived after `since` (records: time, message)."""
+    t = [a for a, _ in arrivals if a >= since]
+    return (len(t) - 1) / (t[-1] - t[0]) if len(t) > 2 else 0.0
+
+
+def diagnostics_values(arrivals, fqn='/hair_sim'):
+    """Return the newest /diagnostics values {key: str} of the node named fqn."""
+    for _, msg in reversed(arrivals):
+        for st in msg.status:
+            if st.name == 'hair_sim: %s' % fqn:
+                return {kv.key: kv.value for kv in st.values}
+    return {}

@@ -1,0 +1,407 @@
+"""
+The node never dies: each class of attack that ended or corrupted it, from another process.
+
+hair_sim_node runs as its own process; this test process is the careless or hostile
+pipeline. After every attack the node must be alive, publishing finite state at its rate,
+and every refusal must come with a reason (and be counted in /diagnostics).
+"""
+
+import copy
+import os
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+import yaml
+
+from hair_sim import budget, paths
+from hair_sim.modeling import load_hairstyle
+from helpers.node_process import Client, diagnostics_values, NodeProcess, rate, wait_for
+
+HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BASE = yaml.safe_load(open(paths.shipped_style('bob_fringe')))
+HEAD = yaml.safe_load(open(os.path.join(paths.heads_dir(), 'default_adult.yaml')))
+NODE = '/hair_sim'
+
+
+class Live:
+    """A running node process and a client recording its state and diagnostics."""
+
+    def __init__(self, tmp):
+        from diagnostic_msgs.msg import DiagnosticArray
+        from hair_sim_msgs.msg import HairState
+        self.tmp = tmp
+        self.node = NodeProcess(tmp)
+        self.client = Client()
+        self.states = self.client.record(HairState, 'hair_state')
+        self.diag = self.client.record(DiagnosticArray, '/diagnostics')
+        assert wait_for(lambda: len(self.states) > 5, 60.0), self.node.output()[-2000:]
+
+    def load(self, path, timeout=30.0):
+        from hair_sim_msgs.srv import LoadHairstyle
+        return self.client.call(LoadHairstyle, NODE + '/load_hairstyle',
+                                LoadHairstyle.Request(path=path), timeout)
+
+    def edit(self, patch, hair, point, xyz, timeout=30.0):
+        from hair_sim_msgs.srv import EditControlPoint
+        req = EditControlPoint.Request(patch=patch, control_hair=hair, control_point=point)
+        req.position.x, req.position.y, req.position.z = (float(v) for v in xyz)
+        return self.client.call(EditControlPoint, NODE + '/edit_control_point', req, timeout)
+
+    def save(self, path, timeout=30.0):
+        from hair_sim_msgs.srv import SaveHairstyle
+        return self.client.call(SaveHairstyle, NODE + '/save_hairstyle',
+                                SaveHairstyle.Request(path=path), timeout)
+
+    def reset(self):
+        from std_srvs.srv import Trigger
+        return self.client.call(Trigger, NODE + '/reset', Trigger.Request())
+
+    def values(self):
+        """Return the newest diagnostics of the node."""
+        return diagnostics_values(self.diag, NODE)
+
+    def write(self, name, data):
+        """Write a style (mapping or text) into the node's hairstyle directory."""
+        text = data if isinstance(data, str) else yaml.safe_dump(data)
+        (self.tmp / name).write_text(text)
+        return name
+
+    def assert_healthy(self, window=2.0):
+        """Alive, publishing at >= 80 % of 30 Hz for `window` s, finite state."""
+        assert self.node.alive(), self.node.output()[-3000:]
+        since = time.monotonic()
+        time.sleep(window)
+        hz = rate(self.states, since)
+        assert hz >= 24.0, (hz, self.node.output()[-2000:])
+        assert np.all(np.isfinite(np.asarray(self.states[-1][1].positions)))
+
+    def close(self):
+        self.client.close()
+        return self.node.stop()
+
+
+@pytest.fixture(scope='module')
+def live(tmp_path_factory):
+    """One node process for the module; every test leaves it healthy."""
+    run = Live(tmp_path_factory.mktemp('boundary'))
+    try:
+        yield run
+        run.assert_healthy()
+    finally:
+        run.close()
+
+
+def refused(response, *fragments):
+    """Assert a service answered with success false and a reason holding the fragments."""
+    assert response is not None, 'no answer'
+    assert not response.success and response.message, response.message
+    assert len(response.message) < 600, 'long message: %d chars' % len(response.message)
+    for f in fragments:
+        assert f in response.message, response.message
+
+
+def style_with(mutate):
+    """Return a copy of bob_fringe (as a mapping) with `mutate` applied."""
+    d = copy.deepcopy(BASE)
+    mutate(d)
+    return d
+
+
+# 1 ---------------------------------------------------------------------------------
+def test_1_an_unexpected_error_in_any_callback_is_counted_and_the_node_goes_on(node_env):
+    """An exception inside the publisher or a subscription is caught, counted, logged."""
+    from geometry_msgs.msg import PoseStamped
+    from helpers.ros import spin_until
+    from rclpy.qos import qos_profile_sensor_data
+    _, ex, node, client = node_env
+
+    class Broken:
+        n_strips = node.scene.renderer.n_strips
+
+        def mesh(self, *args, **kwargs):
+            raise RuntimeError('injected renderer failure')
+
+    renderer, node.scene.renderer = node.scene.renderer, Broken()
+    node.scene._mesh_key = None
+    set_pose = node.sim.set_head_pose
+    node.sim.set_head_pose = lambda *a: 1 / 0
+    pub = client.create_publisher(PoseStamped, 'head_pose', qos_profile_sensor_data)
+    msg = PoseStamped()
+    msg.header.frame_id = 'world'
+    msg.pose.orientation.w = 1.0
+
+    def poke():
+        msg.header.stamp = client.get_clock().now().to_msg()
+        pub.publish(msg)
+        return node.errors['publish'] >= 3 and node.errors['head_pose'] >= 3
+    assert spin_until(ex, poke, 20.0), dict(node.errors)   # spin_once never raised
+    node.scene.renderer = renderer
+    node.sim.set_head_pose = set_pose
+    published = node.counts['published']
+    assert spin_until(ex, lambda: node.counts['published'] > published + 5, 10.0)
+
+
+# 2 ---------------------------------------------------------------------------------
+def test_2_style_switches_race_the_publisher_and_each_other(live):
+    """40 loads a second from one client, then five clients at once while poses stream."""
+    from hair_sim_msgs.srv import LoadHairstyle
+    names = ['thesis_long', 'bob_fringe', 'thesis_short', 'side_swept_long']
+    cli = live.client.node.create_client(LoadHairstyle, NODE + '/load_hairstyle')
+    assert cli.wait_for_service(timeout_sec=20.0)
+    futures = []
+    end = time.monotonic() + 8.0
+    k = 0
+    while time.monotonic() < end:                     # 40 a second, not waiting for answers
+        futures.append(cli.call_async(LoadHairstyle.Request(path=names[k % 4])))
+        k += 1
+        time.sleep(0.025)
+    assert wait_for(lambda: all(f.done() for f in futures), 60.0), 'loads left unanswered'
+    answers = [f.result() for f in futures]
+    assert all(a.message for a in answers)
+    assert sum(a.success for a in answers) >= len(answers) // 2, [a.message for a in answers]
+    assert all(a.success or 'busy' in a.message for a in answers), [
+        a.message for a in answers if not a.success][:3]
+    live.assert_healthy(1.0)
+    poses = subprocess.Popen([sys.executable, os.path.join(HERE, 'helpers', 'pose_publisher.py'),
+                              '0.02', '0.0', '0.01', '20'], env=dict(os.environ, PYTHONPATH=HERE))
+    results = []
+
+    def worker(i):
+        for j in range(12):
+            kind = (i + j) % 4
+            if kind == 0:
+                r = live.load(names[(i + j) % 4])
+            elif kind == 1:
+                r = live.edit(0, (i + j) % 3, 2, [0.0, 0.01 * i, 0.12])
+            elif kind == 2:
+                r = live.save('race_%d.yaml' % i)
+            else:
+                r = live.reset()
+            results.append((kind, r))
+    try:
+        threads = [threading.Thread(target=worker, args=(i,)) for i in range(5)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(timeout=120)
+        live.assert_healthy()
+    finally:
+        poses.terminate()
+        poses.wait(timeout=10)
+    assert len(results) == 60 and all(r is not None and r.message for _, r in results)
+    for i in range(5):                                # every save that succeeded loads back
+        if (live.tmp / ('race_%d.yaml' % i)).exists():
+            load_hairstyle(str(live.tmp / ('race_%d.yaml' % i)))
+
+
+# 3 ---------------------------------------------------------------------------------
+@pytest.mark.parametrize('field, value', [
+    ('width', 'abc'), ('width', 0), ('width', 10 ** 7), ('width', 1e7), ('height', -5),
+    ('seed', -1), ('streaks', 10 ** 7), ('streaks', '1e7'), ('edge_fade', float('nan')),
+    ('tip_fade', [1, 2])])
+def test_3_every_material_value_is_checked_where_it_enters(live, field, value):
+    """A bad texture value is refused at load, naming the field; nothing reaches a publish."""
+    name = live.write('tex_%s.yaml' % field, style_with(
+        lambda d: d['material']['texture'].__setitem__(field, value)))
+    t0 = time.monotonic()
+    refused(live.load(name), 'material.texture.%s' % field)
+    assert time.monotonic() - t0 < 5.0
+    live.assert_healthy(0.5)
+
+
+# 4 ---------------------------------------------------------------------------------
+BIG = 10 ** 400
+
+
+def _alias_bomb(levels):
+    text = 'a0: &a0 ["lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol"]\n'
+    for i in range(1, levels + 1):
+        text += 'a%d: &a%d [%s]\n' % (i, i, ', '.join(['*a%d' % (i - 1)] * 9))
+    return text + 'patches: *a%d\n' % levels
+
+
+@pytest.mark.parametrize('case', ['deep', 'coordinate', 'colour', 'weights', 'knots',
+                                  'bomb', 'head_radius', 'hairline'])
+def test_4_parse_errors_of_every_kind_are_refused_quickly(live, case):
+    """Deep nesting, 400-digit numbers anywhere, alias bombs: refused in well under 5 s."""
+    files = {
+        'deep': lambda: 'name: deep\npatches: ' + '[' * 1000 + ']' * 1000 + '\n',
+        'coordinate': lambda: yaml.safe_dump(style_with(
+            lambda d: d['patches'][0]['control_hairs'][1][2].__setitem__(0, BIG))),
+        'colour': lambda: yaml.safe_dump(style_with(
+            lambda d: d['material'].__setitem__('color', [BIG, 0, 0]))),
+        'weights': lambda: yaml.safe_dump(style_with(lambda d: d['patches'][0].__setitem__(
+            'weights', [[BIG] * len(h) for h in d['patches'][0]['control_hairs']]))),
+        'knots': lambda: yaml.safe_dump(style_with(lambda d: d['patches'][0].__setitem__(
+            'knots_along', [0, 0, 0, 0, BIG, BIG, BIG, BIG]))),
+        'bomb': lambda: _alias_bomb(8),
+    }
+    if case in ('head_radius', 'hairline'):
+        head = copy.deepcopy(HEAD)
+        if case == 'head_radius':
+            head['scalp_spheres'][0]['radius'] = BIG
+        else:
+            head['hairline']['front_z'] = -BIG
+        (live.tmp / 'heads').mkdir(exist_ok=True)
+        (live.tmp / 'heads' / ('%s.yaml' % case)).write_text(yaml.safe_dump(head))
+        text = yaml.safe_dump(style_with(lambda d: d.__setitem__('head', case)))
+    else:
+        text = files[case]()
+    name = live.write('parse_%s.yaml' % case, text)
+    t0 = time.monotonic()
+    refused(live.load(name))
+    assert time.monotonic() - t0 < 5.0
+    # the same file through the hairstyle parameter: refused with a reason, changes nothing
+    result = live.client.set_parameters(NODE, {'hairstyle': name})
+    assert result is not None and not result[0].successful and result[0].reason
+    assert live.client.get_parameters(NODE, ['hairstyle'])['hairstyle'] != name
+    live.assert_healthy(0.5)
+
+
+# 5 ---------------------------------------------------------------------------------
+def test_5_changes_are_all_or_nothing(live):
+    """A 72-sphere head is refused before anything swaps; a refused set changes nothing."""
+    head = copy.deepcopy(HEAD)
+    head['collision_spheres'] = [dict(s, name='s%d' % i) for i, s in enumerate(
+        head['collision_spheres'] * 7)][:70]
+    (live.tmp / 'heads').mkdir(exist_ok=True)
+    (live.tmp / 'heads' / 'many.yaml').write_text(yaml.safe_dump(head))
+    before = live.values().get('hairstyle')
+    refused(live.load(live.write('many_spheres.yaml', style_with(
+        lambda d: d.__setitem__('head', 'many')))), '63')
+    live.assert_healthy(1.0)
+    assert live.values().get('hairstyle') == before
+    res = live.client.set_parameters(NODE, {'physics.max_wind_speed': 5.0,
+                                            'hairstyle': 'no_such_style'}, atomically=True)
+    assert res is not None and not res.successful and 'no_such_style' in res.reason
+    assert live.client.get_parameters(NODE, ['physics.max_wind_speed']) == {
+        'physics.max_wind_speed': 40.0}
+    from hair_sim_msgs.msg import Wind
+    pub = live.client.node.create_publisher(Wind, 'wind', 10)
+    clamped = int(live.values().get('wind_clamped', 0))
+    assert wait_for(lambda: pub.get_subscription_count() > 0, 10.0)
+    w = Wind()
+    w.header.frame_id = 'world'
+    w.velocity.x = 20.0                                # under 40: not clamped
+    pub.publish(w)
+    time.sleep(2.5)
+    assert int(live.values().get('wind_clamped', 0)) == clamped
+    w.velocity.x = 0.0
+    pub.publish(w)
+
+
+# 6 ---------------------------------------------------------------------------------
+def test_6_edits_have_the_same_bounds_as_files(live):
+    """Edits far away or non-finite are refused; an accepted, saved edit loads back."""
+    assert live.load('bob_fringe').success
+    for xyz in ([1e300, 1e300, 1e300], [1e30, 0.0, 0.0], [float('nan'), 0.0, 0.1],
+                [float('inf'), 0.0, 0.0], [3.0, 0.0, 0.0]):
+        refused(live.edit(0, 1, 3, xyz))
+    refused(live.edit(2 ** 32 - 1, 0, 0, [0, 0, 0.1]), 'no patch')
+    refused(live.edit(0, 2 ** 31, 0, [0, 0, 0.1]), 'no control hair')
+    ok = live.edit(0, 1, 3, [0.0, 0.02, 0.13])
+    assert ok.success, ok.message
+    saved = live.save('edited.yaml')
+    assert saved.success, saved.message
+    style = load_hairstyle(str(live.tmp / 'edited.yaml'))
+    assert np.allclose(style.patches[0].points[1, 3], [0.0, 0.02, 0.13])
+    assert live.load('edited').success
+
+
+# 7 ---------------------------------------------------------------------------------
+def test_7_sizes_follow_the_budget_and_loads_do_not_stop_publishing(live):
+    """
+    Over-budget styles are refused before building, with the numbers.
+
+    The largest style that fits loads in the background while hair_state keeps coming.
+    """
+    huge = style_with(lambda d: (d['lod'].update(vertices=64, render_rows=256,
+                                                 render_columns=16),
+                                 [p.update(strips=1000) for p in d['patches']]))
+    t0 = time.monotonic()
+    refused(live.load(live.write('huge.yaml', huge)), 'budget', 'simulated vertices')
+    assert time.monotonic() - t0 < 5.0
+    lod = style_with(lambda d: d['lod'].update(render_rows=256, render_columns=16))
+    lod['patches'][0]['strips'] = 200
+    refused(live.load(live.write('lod.yaml', lod)), 'budget')
+    # the largest thesis_long that fits: loads while hair_state keeps its rate
+    data = yaml.safe_load(open(paths.shipped_style('thesis_long')))
+    n = 46
+    while budget.core_share(2 * (n + 10) * 10, (n + 10) * 7 * 30) < budget.CPU_SHARE:
+        n += 10
+    data['patches'][0]['strips'] = n
+    name = live.write('largest.yaml', data)
+    since = time.monotonic()
+    r = live.load(name)
+    assert r.success, r.message
+    arrivals = [t for t, _ in live.states if t >= since]
+    gap = max(np.diff(arrivals)) if len(arrivals) > 2 else 1e9
+    assert gap < 0.5, 'publishing stopped for %.2f s during the load' % gap
+    assert live.load('bob_fringe').success
+
+
+# 8 ---------------------------------------------------------------------------------
+def test_8_pose_stamps_that_loop_back_re_anchor_the_clock(live):
+    """Stamps jumping back 60 s (a looping bag): re-anchored, and the hair follows again."""
+    from hair_sim_msgs.msg import HairState
+    assert live.load('thesis_long').success
+    jumps = int(live.values().get('pose_clock_jump', 0))
+    states = live.client.record(HairState, 'hair_state')
+    proc = subprocess.Popen([sys.executable, os.path.join(HERE, 'helpers', 'looping_clock.py'),
+                             '60', '2', '4', '0.3'], env=dict(os.environ, PYTHONPATH=HERE),
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        assert 'done' in proc.communicate(timeout=60)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    time.sleep(1.5)
+    assert int(live.values().get('pose_clock_jump', 0)) > jumps
+    roots = np.asarray(states[-1][1].positions).reshape(-1, 10, 3)[:, 0]
+    head = load_hairstyle(paths.shipped_style('thesis_long'))
+    from hair_sim.modeling.strips import build_strips
+    rest_roots = build_strips(head).rest[:, 0]
+    assert np.abs(roots - rest_roots - [0.3, 0.0, 0.0]).max() < 1e-3, 'the hair did not follow'
+
+
+# 9 ---------------------------------------------------------------------------------
+def test_9_the_smaller_ones(live):
+    """
+    The smaller ones.
+
+    A viewpoint as a ROS array, wind in an unknown frame, stability on every route, head
+    files outside the directories.
+    """
+    from hair_sim_msgs.msg import Wind
+    res = live.client.set_parameters(NODE, {'viewpoint': [0.5, 0.1, 0.2]})
+    assert res[0].successful, res[0].reason
+    res = live.client.set_parameters(NODE, {'viewpoint': [0.5, 0.1]})
+    assert not res[0].successful and 'viewpoint' in res[0].reason
+    pub = live.client.node.create_publisher(Wind, 'wind', 10)
+    assert wait_for(lambda: pub.get_subscription_count() > 0, 10.0)
+    w = Wind()
+    w.header.frame_id = 'camera_optical'
+    w.velocity.x = 3.0
+    pub.publish(w)
+    assert wait_for(lambda: int(live.values().get('refused_wind_wrong_frame', 0)) >= 1, 5.0)
+    assert live.load('thesis_long').success
+    res = live.client.set_parameters(NODE, {'physics.integrator': 'explicit'})
+    assert res[0].successful, res[0].reason
+    refused(live.load('bob_fringe'), 'unstable')
+    res = live.client.set_parameters(NODE, {'physics.damping': 12.0})
+    assert res[0].successful, res[0].reason
+    res = live.client.set_parameters(NODE, {'physics.integrator': 'implicit'})
+    assert res[0].successful, res[0].reason
+    outside = live.tmp.parent / ('outside_%s' % live.tmp.name)
+    outside.mkdir(exist_ok=True)
+    (outside / 'head.yaml').write_text(yaml.safe_dump(HEAD))
+    for ref in (str(outside / 'head.yaml'), '../%s/head.yaml' % outside.name,
+                '/etc/missing_head.yaml'):
+        r = live.load(live.write('outside_head.yaml', style_with(
+            lambda d: d.__setitem__('head', ref))))
+        refused(r, 'not found')
+        assert str(outside) not in r.message and '/etc' not in r.message, r.message

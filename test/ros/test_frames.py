@@ -1,0 +1,128 @@
+"""
+Frames and stamps a ROS user can display.
+
+World markers, head-frame markers, DELETEALL, wind in the head frame, and stamps of the
+head pose the hair was computed for.
+"""
+
+import numpy as np
+from rclpy.parameter import Parameter
+from rclpy.qos import qos_profile_sensor_data
+
+from helpers.ros import spin_until
+
+
+def _pose_publisher(client, stamps, position=(0.0, 0.0, 0.0), yaw=0.0):
+    from geometry_msgs.msg import PoseStamped
+    pub = client.create_publisher(PoseStamped, 'head_pose', qos_profile_sensor_data)
+    msg = PoseStamped()
+    msg.header.frame_id = 'world'
+    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = position
+    msg.pose.orientation.z, msg.pose.orientation.w = np.sin(yaw / 2), np.cos(yaw / 2)
+
+    def send():
+        now = client.get_clock().now()
+        msg.header.stamp = now.to_msg()
+        stamps.append(now.nanoseconds * 1e-9)
+        pub.publish(msg)
+    return client.create_timer(0.01, send)
+
+
+def test_markers_in_the_world_frame_by_default_and_in_the_head_frame_on_request(node_env):
+    """
+    Markers go in the world frame by default, in the head frame on request.
+
+    Default: world frame, not frame-locked, points = the mesh in the world. With
+    markers_in_head_frame: head_frame (a parameter), frame_locked, points in the head frame;
+    every layout change is preceded by a DELETEALL.
+    """
+    from visualization_msgs.msg import Marker, MarkerArray
+    _, ex, node, client = node_env
+    stamps = []
+    _pose_publisher(client, stamps, position=(0.1, 0.2, 0.0), yaw=0.5)
+    arrays = []
+    client.create_subscription(MarkerArray, 'hair_markers', arrays.append, 10)
+    assert spin_until(ex, lambda: len(stamps) > 30 and len(arrays) > 3, 20.0)
+    m = arrays[-1].markers[0]
+    assert m.header.frame_id == 'world' and not m.frame_locked and m.action == Marker.ADD
+    R, p = node.sim.head_pose
+    assert np.allclose(p, [0.1, 0.2, 0.0], atol=1e-6)
+    pts = np.array([[q.x, q.y, q.z] for q in m.points])
+    mesh = node.scene.mesh()
+    world = mesh.vertices[mesh.indices.reshape(-1)][:len(pts)]
+    assert np.abs(pts - world).max() < 0.05          # the state moved on a little since
+    res = node.set_parameters([Parameter('markers_in_head_frame', value=True),
+                               Parameter('head_frame', value='avatar1/head')])
+    assert all(r.successful for r in res)
+    n = len(arrays)
+    assert spin_until(ex, lambda: len(arrays) > n + 3, 10.0)
+    first = next(i for i, a in enumerate(arrays) if a.markers[0].header.frame_id != 'world')
+    assert first >= n - 10                            # (older ones may still be queued)
+    assert arrays[first].markers[0].action == Marker.DELETEALL
+    assert all(a.markers[0].action == Marker.ADD for a in arrays[first + 1:])
+    m = arrays[-1].markers[0]
+    assert m.header.frame_id == 'avatar1/head' and m.frame_locked
+    pts = np.array([[q.x, q.y, q.z] for q in m.points])
+    R, p = node.sim.head_pose
+    mesh = node.scene.mesh()
+    head = (mesh.vertices[mesh.indices.reshape(-1)][:len(pts)] - p) @ R
+    assert np.abs(pts - head).max() < 0.05 and np.abs(pts).max() < 1.0
+    res = node.set_parameters([Parameter('head_frame', value='not a frame!')])
+    assert not res[0].successful
+
+
+def test_wind_in_the_head_frame_is_rotated_into_the_world(node_env):
+    """A wind message in head_frame is turned by the head's rotation; unknown frames refused."""
+    from hair_sim_msgs.msg import Wind
+    _, ex, node, client = node_env
+    stamps = []
+    _pose_publisher(client, stamps, yaw=np.pi / 2)
+    assert spin_until(ex, lambda: len(stamps) > 20 and node.counts['poses'] > 10, 20.0)
+    pub = client.create_publisher(Wind, 'wind', 10)
+    w = Wind()
+    w.header.frame_id = node.head_frame
+    w.velocity.x = 2.0                                  # forward, in the head frame
+    pub.publish(w)
+    assert spin_until(ex, lambda: node.counts['wind'] >= 1, 10.0)
+    assert np.allclose(node.sim.wind.velocity, [0.0, 2.0, 0.0], atol=1e-3)
+    w.header.frame_id = 'camera'
+    pub.publish(w)
+    assert spin_until(ex, lambda: node.refused['wind_wrong_frame'] >= 1, 10.0)
+    assert np.allclose(node.sim.wind.velocity, [0.0, 2.0, 0.0], atol=1e-3)
+
+
+def test_messages_carry_the_stamp_of_the_pose_they_follow(node_env):
+    """
+    Each hair_state stamp is a pose stamp the node had, not the publish time.
+
+    Never newer than the newest pose sent, and close behind it at 100 Hz poses.
+    """
+    from hair_sim_msgs.msg import HairMesh, HairState
+    _, ex, node, client = node_env
+    stamps = []
+    _pose_publisher(client, stamps)
+    got = []
+    client.create_subscription(HairState, 'hair_state',
+                               lambda m: got.append((m.header.stamp, stamps[-1])), 10)
+    meshes = []
+    client.create_subscription(HairMesh, 'hair_mesh', meshes.append, 10)
+    assert spin_until(ex, lambda: len(got) > 60 and meshes, 20.0)
+    lag = np.array([newest - (s.sec + s.nanosec * 1e-9) for s, newest in got[20:]])
+    assert lag.min() >= -1e-6, lag.min()               # never ahead of the newest pose
+    assert np.median(lag) < 0.05, np.median(lag)
+    assert meshes[-1].header.frame_id == 'world'
+
+
+def test_head_transform_matches_the_pose():
+    """The world -> head TransformStamped published on /tf (full installs) is the pose."""
+    from geometry_msgs.msg import PoseStamped
+    from hair_sim.ros.node import head_transform
+    msg = PoseStamped()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 12, 345
+    msg.pose.position.x, msg.pose.position.z = 0.5, 1.6
+    msg.pose.orientation.z, msg.pose.orientation.w = 0.6, 0.8
+    tf = head_transform(msg, 'world', 'avatar1/head')
+    assert (tf.header.frame_id, tf.child_frame_id) == ('world', 'avatar1/head')
+    assert tf.header.stamp.sec == 12 and tf.header.stamp.nanosec == 345
+    assert (tf.transform.translation.x, tf.transform.translation.z) == (0.5, 1.6)
+    assert (tf.transform.rotation.z, tf.transform.rotation.w) == (0.6, 0.8)

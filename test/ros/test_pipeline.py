@@ -1,0 +1,135 @@
+"""
+The node as a pipeline meets it.
+
+The demo measured from another process, discovery left to the user, and two avatars in two
+namespaces without cross-talk.
+
+Rates here are functional floors (>= 80 % of the configured rate catches a collapse such
+as the 2 Hz demo); the speed claims live in `hair_sim_bench node`.
+"""
+
+import json
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from helpers.node_process import Client, diagnostics_values, NodeProcess, rate, wait_for
+
+HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BIN = os.path.dirname(sys.executable)
+
+
+def read_url(proc, timeout):
+    """Read the demo's stdout until its 'URL ...' line."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        line = proc.stdout.readline()
+        if line.startswith('URL '):
+            return line.split()[1]
+        if not line and proc.poll() is not None:
+            break
+    raise AssertionError('the demo printed no URL')
+
+
+def test_make_demo_publishes_at_its_configured_rates():
+    """hair_sim_demo as `make demo` runs it; a raw subscriber in another process measures."""
+    demo = subprocess.Popen([os.path.join(BIN, 'hair_sim_demo'), '--duration', '60'],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        url = read_url(demo, 90.0)
+        out = subprocess.run([sys.executable, '-m', 'hair_sim.bench.probe', '--duration', '6',
+                              '--warmup', '3', '--meshcat-url', url],
+                             capture_output=True, text=True, timeout=120)
+        assert demo.poll() is None, 'the demo ended early'
+    finally:
+        demo.terminate()
+        demo.wait(timeout=30)
+    report = json.loads(out.stdout)
+    node = report['/']
+    # shipped rates: publish_rate 30 (hair_mesh, hair_state), marker_rate 10, meshcat 20
+    for topic, hz in (('hair_mesh', 30.0), ('hair_state', 30.0), ('hair_markers', 10.0)):
+        assert node[topic]['rate_hz'] >= 0.8 * hz, (topic, node[topic])
+    assert node['poses_sent_hz'] >= 80.0, node                 # the driver's 100 Hz arrive
+    assert node['poses_accepted_share'] >= 0.95, node
+    assert report['meshcat']['rate_hz'] >= 0.8 * 20.0, report['meshcat']
+
+
+def test_neither_program_changes_the_discovery_range(monkeypatch):
+    """hair_sim_node and hair_sim_demo leave ROS_AUTOMATIC_DISCOVERY_RANGE to the user."""
+    import rclpy
+    from hair_sim.ros import demo, node
+    seen = []
+
+    class Recorder:
+        def __init__(self, *args, **kwargs):
+            seen.append(os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', '<unset>'))
+            raise KeyboardInterrupt
+
+    for value in (None, 'SUBNET'):
+        if value is None:
+            monkeypatch.delenv('ROS_AUTOMATIC_DISCOVERY_RANGE', raising=False)
+        else:
+            monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', value)
+        monkeypatch.setattr(node, 'HairSimNode', Recorder)
+        monkeypatch.setattr(rclpy, 'init', lambda *a, **k: None)
+        monkeypatch.setattr(rclpy, 'try_shutdown', lambda *a, **k: None)
+        node.main([])
+        monkeypatch.setattr('hair_sim.ros.node.HairSimNode', Recorder)
+        demo.main(['--no-meshcat'])
+        expected = '<unset>' if value is None else value
+        assert seen[-2:] == [expected, expected]
+        assert os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', '<unset>') == expected
+
+
+def test_two_avatars_in_two_namespaces_do_not_talk_across(tmp_path):
+    """
+    Two node processes (/left, /right), each with its own tracker, keep to themselves.
+
+    Own topics, services, parameters and diagnostics; each keeps its rate.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+    from hair_sim_msgs.msg import HairState
+    from hair_sim_msgs.srv import LoadHairstyle
+    nodes = {ns: NodeProcess(tmp_path, namespace='/' + ns, log_name='%s.log' % ns)
+             for ns in ('left', 'right')}
+    trackers = {ns: subprocess.Popen(
+        [sys.executable, os.path.join(HERE, 'helpers', 'pose_publisher.py'), x, '0', '0', '0',
+         'world', '--ros-args', '-r', '__ns:=/%s' % ns], env=dict(os.environ, PYTHONPATH=HERE))
+        for ns, x in (('left', '0.3'), ('right', '-0.3'))}
+    client = Client()
+    try:
+        states = {ns: client.record(HairState, '/%s/hair_state' % ns) for ns in nodes}
+        diag = client.record(DiagnosticArray, '/diagnostics', 50)
+        assert wait_for(lambda: all(len(s) > 30 for s in states.values()), 60.0)
+
+        def roots(ns):
+            return np.asarray(states[ns][-1][1].positions).reshape(-1, 10, 3)[:, 0]
+        assert wait_for(lambda: roots('left')[:, 0].mean() > 0.2
+                        and roots('right')[:, 0].mean() < -0.2, 20.0), 'poses crossed over'
+        r = client.call(LoadHairstyle, '/left/hair_sim/load_hairstyle',
+                        LoadHairstyle.Request(path='bob_fringe'))
+        assert r.success, r.message
+        res = client.set_parameters('/right/hair_sim', {'physics.damping': 5.0})
+        assert res[0].successful
+        assert client.get_parameters('/left/hair_sim', ['physics.damping']) == {
+            'physics.damping': 12.0}
+        assert wait_for(lambda: diagnostics_values(diag, '/left/hair_sim').get('hairstyle')
+                        == 'bob_fringe', 10.0)
+        assert diagnostics_values(diag, '/right/hair_sim').get('hairstyle') == 'thesis_long'
+        since = time.monotonic()
+        time.sleep(4.0)
+        for ns in nodes:
+            assert rate(states[ns], since) >= 24.0, (ns, rate(states[ns], since))
+        assert roots('left').shape[0] != roots('right').shape[0]   # bob_fringe vs thesis_long
+        for ns, proc in nodes.items():
+            assert proc.alive(), proc.output()[-2000:]
+    finally:
+        client.close()
+        for p in trackers.values():
+            p.terminate()
+            p.wait(timeout=10)
+        for p in nodes.values():
+            p.stop()
