@@ -16,6 +16,7 @@ setup(
         ('share/' + package_name + '/config', glob('config/*.yaml')),
         ('share/' + package_name + '/config/heads', glob('config/heads/*.yaml')),
         ('share/' + package_name + '/config/hairstyles', glob('config/hairstyles/*.yaml')),
+        ('share/' + package_name + '/launch', glob('config/launch/*.launch.xml')),
     ],
     install_requires=['setuptools'],
     zip_safe=False,

@@ -5,6 +5,10 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
     hair_sim_bench scale    [--json] [--quick] [--plots DIR]   cost against strips
     hair_sim_bench skip     [--json] [--quick]                 features on and off
     hair_sim_bench stress   [--json] [--quick] [--plots DIR]   stability under abuse
+    hair_sim_bench node     [--json] [--quick]                 the node from outside:
+                                rates, latency, CPU, avatars per machine, load gaps
+    hair_sim_bench budget   [--json] [--quick]                 per-vertex costs behind
+                                the frame budget (hair_sim/budget.py)
 """
 
 import argparse
@@ -19,7 +23,7 @@ def main(argv=None):
     """Run one benchmark command; stress exits 1 if a promised case failed."""
     parser = argparse.ArgumentParser(prog='hair_sim_bench', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress'])
+    parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress', 'node', 'budget'])
     parser.add_argument('--json', action='store_true', help='print JSON on stdout')
     parser.add_argument('--quick', action='store_true', help='a short run (under a minute)')
     parser.add_argument('--plots', default='bench_out', help='directory for PNG plots')
@@ -31,6 +35,14 @@ def main(argv=None):
     elif args.command == 'scale':
         from hair_sim.bench import scale
         emit(scale.run(args.quick, args.plots), args.json, 'scale')
+    elif args.command == 'node':
+        from hair_sim.bench import node
+        result = node.run(args.quick)
+        print(json.dumps(clean(result), indent=1) if args.json else json.dumps(clean(result)))
+    elif args.command == 'budget':
+        from hair_sim.bench import budget
+        result = budget.run(args.quick)
+        print(json.dumps(clean(result), indent=1) if args.json else json.dumps(clean(result)))
     elif args.command == 'skip':
         from hair_sim.bench import skip
         emit(skip.run(args.quick), args.json, 'skip')

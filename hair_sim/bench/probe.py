@@ -228,7 +228,7 @@ def main(argv=None):
     parser.add_argument('--duration', type=float, default=10.0)
     parser.add_argument('--warmup', type=float, default=2.0)
     parser.add_argument('--meshcat-url', default=None)
-    parser.add_argument('--topics', nargs='+', default=None,
+    parser.add_argument('--topics', nargs='*', default=None,
                         choices=[t[0] for t in HAIR_TOPICS], help='default: all')
     args = parser.parse_args(argv)
     rclpy.init()

@@ -144,6 +144,18 @@ class HeadMotion:
         self.counts['accepted'] += 1
         return verdict
 
+    def skip(self, seconds):
+        """
+        Shift the mapping by `seconds` the simulator dropped (it could not keep up).
+
+        Pose stamps then keep lining up with the simulator's time.
+        """
+        if self.offset is None or seconds <= 0.0:
+            return
+        self.offset += seconds
+        self.samples = deque(((t - seconds, st, p, q) for t, st, p, q in self.samples),
+                             maxlen=HISTORY)
+
     @property
     def newest_stamp(self):
         """Return the stamp of the newest accepted pose, or None."""

@@ -37,6 +37,7 @@ RANGES = {
     'clock_jump_back': (0.001, 86400.0),
 }
 INTEGRATORS = ('explicit', 'implicit')
+MODELS = ('anjyo',)
 
 
 @dataclass

@@ -96,6 +96,15 @@ class HairSimulator:
         self._place_at_rest()
         self.state_version = old.state_version + 1
 
+    def skip_time(self, seconds):
+        """
+        Let `seconds` of input time pass unsimulated (a driver that fell behind drops them).
+
+        The pose clock's mapping moves along, so the next step follows the head pose of
+        now, not one `seconds` old, and output stamps stay honest.
+        """
+        self.motion.skip(float(seconds))
+
     def stamp_at(self, t=None):
         """
         Return the head-pose stamp (s) that simulator time t (default: now) corresponds to.

@@ -502,6 +502,7 @@ class HairSimNode(Node):
         cap = self._p('max_steps_per_frame')
         if n > cap:
             self.counts['overruns'] += 1
+            self.sim.skip_time(self._acc - cap * h)      # dropped: the pose clock moves on
             n = cap
             self._acc = 0.0
         else:

@@ -133,3 +133,30 @@ def test_two_avatars_in_two_namespaces_do_not_talk_across(tmp_path):
             p.wait(timeout=10)
         for p in nodes.values():
             p.stop()
+
+
+def test_the_shipped_launch_file_names_real_executables_and_parameters():
+    """
+    The shipped launch file is consistent with the package.
+
+    config/launch/avatars.launch.xml: every node is a console script of ours, every param
+    it sets is declared by the node, and every avatar has its own namespace and head frame.
+    """
+    import xml.etree.ElementTree as ET
+    from hair_sim import paths
+    from hair_sim.ros.params import all_parameters
+    setup = open(os.path.join(os.path.dirname(paths.config_dir()), 'setup.py')).read()
+    root = ET.parse(os.path.join(paths.config_dir(), 'launch', 'avatars.launch.xml')).getroot()
+    groups = root.findall('group')
+    assert len(groups) >= 2
+    namespaces, frames = set(), set()
+    for g in groups:
+        namespaces.add(g.find('push-ros-namespace').get('namespace'))
+        node = g.find('node')
+        assert node.get('pkg') == 'hair_sim' and "'%s = " % node.get('exec') in setup
+        for p in node.findall('param'):
+            if p.get('name') is not None:
+                assert p.get('name') in all_parameters(), p.get('name')
+                if p.get('name') == 'head_frame':
+                    frames.add(p.get('value'))
+    assert len(namespaces) == len(groups) == len(frames)

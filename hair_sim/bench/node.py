@@ -1,0 +1,180 @@
+"""
+hair_sim_bench node: the node measured the way a pipeline meets it.
+
+For k = 1, 2, ... avatars: k `hair_sim_node` processes in namespaces /avatar_0 ...
+(thesis_long, shipped parameters; the first also streams to meshcat), each driven by its
+own `hair_sim_head_driver` process at 100 Hz. Two more processes subscribe raw, as a
+pipeline would: a renderer (hair_mesh, hair_state) and an RViz stand-in (hair_markers).
+Per node: the sustained rate of each topic, the share of poses accepted, pose -> hair
+latency from the stamps (p50/p95/max), CPU of the node process; the meshcat frame rate as
+a websocket client (a browser) receives it. k grows until some avatar no longer sustains
+its rates (30 Hz hair_mesh/hair_state, 10 Hz markers, >= 95 % poses): the last k that did
+is how many thesis_long avatars this machine runs at 30 Hz. Finally, with one avatar, the
+longest gap between hair_state messages while the largest style inside the frame budget
+loads.
+"""
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import psutil
+import yaml
+
+from hair_sim import budget, paths
+
+BIN = os.path.dirname(sys.executable)
+SUSTAIN = {'hair_mesh': 30.0, 'hair_state': 30.0, 'hair_markers': 10.0}
+
+
+def _node_cmd(ns, meshcat):
+    params = os.path.join(paths.config_dir(), 'hair_sim.yaml')
+    return [os.path.join(BIN, 'hair_sim_node'), '--ros-args', '--params-file', params,
+            '-r', '__ns:=%s' % ns, '-p', 'meshcat.enabled:=%s' % str(meshcat).lower()]
+
+
+def _probe(namespaces, duration, warmup, topics, meshcat_url=None):
+    cmd = [sys.executable, '-m', 'hair_sim.bench.probe', '--namespaces'] + namespaces + [
+        '--duration', str(duration), '--warmup', str(warmup), '--topics'] + topics
+    if meshcat_url:
+        cmd += ['--meshcat-url', meshcat_url]
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+
+
+def _meshcat_url(log_path, timeout=60.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        with open(log_path) as f:
+            for line in f:
+                if 'meshcat URL ' in line:
+                    return line.split('meshcat URL ')[1].split()[0]
+        time.sleep(0.2)
+    return None
+
+
+def run_avatars(k, duration, workdir):
+    """Run k avatars; return the per-node records and whether all sustained their rates."""
+    namespaces = ['/avatar_%d' % i for i in range(k)]
+    procs, logs = [], []
+    try:
+        for i, ns in enumerate(namespaces):
+            log = os.path.join(workdir, 'node_%d.log' % i)
+            logs.append(log)
+            procs.append(subprocess.Popen(_node_cmd(ns, meshcat=(i == 0)),
+                                          stdout=open(log, 'w'), stderr=subprocess.STDOUT))
+        url = _meshcat_url(logs[0])
+        drivers = [subprocess.Popen([os.path.join(BIN, 'hair_sim_head_driver'), '--ros-args',
+                                     '-r', '__ns:=%s' % ns], stdout=subprocess.DEVNULL,
+                                    stderr=subprocess.DEVNULL) for ns in namespaces]
+        procs += drivers
+        time.sleep(3.0)
+        nodes = [psutil.Process(p.pid) for p in procs[:k]]
+        for n in nodes:
+            n.cpu_percent(None)
+        warmup = 4.0
+        # three subscriber processes, as a pipeline has them: a renderer, RViz, a browser
+        renderer = _probe(namespaces, duration, warmup, ['hair_mesh', 'hair_state'])
+        rviz = _probe(namespaces, duration, warmup, ['hair_markers'])
+        browser = _probe(namespaces[:1], duration, warmup, [], url) if url else None
+        time.sleep(warmup)
+        for n in nodes:
+            n.cpu_percent(None)
+        a = json.loads(renderer.communicate(timeout=duration + 120)[0])
+        b = json.loads(rviz.communicate(timeout=60)[0])
+        c = json.loads(browser.communicate(timeout=60)[0]) if browser else {}
+        cpu = [n.cpu_percent(None) for n in nodes]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.send_signal(2)
+        for p in procs:
+            try:
+                p.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                p.kill()
+    records = []
+    ok = True
+    for i, ns in enumerate(namespaces):
+        rec = {'avatars': k, 'namespace': ns, 'cpu_percent_of_a_core': cpu[i]}
+        rec.update({k2: v for k2, v in a[ns].items()})
+        rec['hair_markers'] = b[ns]['hair_markers']
+        for topic, hz in SUSTAIN.items():
+            rec['%s_rate_hz' % topic] = rec[topic]['rate_hz']
+            ok &= rec[topic]['rate_hz'] >= 0.95 * hz
+        ok &= (rec.get('poses_accepted_share') or 0.0) >= 0.95
+        records.append(rec)
+    return records, ok, c.get('meshcat', {})
+
+
+def load_gap(workdir, duration=6.0):
+    """Return the longest hair_state gap (ms) while the largest in-budget style loads."""
+    from hair_sim.bench.probe import Probe
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from hair_sim_msgs.srv import LoadHairstyle
+    data = yaml.safe_load(open(paths.shipped_style('thesis_long')))
+    strips = 46
+    while budget.core_share(2 * (strips + 2) * 10, (strips + 2) * 7 * 30) < budget.CPU_SHARE:
+        strips += 2
+    data['patches'][0]['strips'] = strips
+    with open(os.path.join(workdir, 'largest.yaml'), 'w') as f:
+        yaml.safe_dump(data, f)
+    params = os.path.join(paths.config_dir(), 'hair_sim.yaml')
+    node = subprocess.Popen([os.path.join(BIN, 'hair_sim_node'), '--ros-args', '--params-file',
+                             params, '-p', 'hairstyle_dirs:=["", "%s"]' % workdir],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    rclpy.init()
+    client = rclpy.create_node('hair_sim_bench_loader')
+    probe = Probe(client, ['/'], ['hair_state'])
+    ex = SingleThreadedExecutor()
+    ex.add_node(client)
+    try:
+        cli = client.create_client(LoadHairstyle, '/hair_sim/load_hairstyle')
+        cli.wait_for_service(timeout_sec=60.0)
+        end = time.monotonic() + 3.0
+        while time.monotonic() < end:
+            ex.spin_once(timeout_sec=0.05)
+        probe.recording = True
+        gaps = []
+        for name in ('largest', 'thesis_long', 'largest'):
+            t0 = time.monotonic()
+            future = cli.call_async(LoadHairstyle.Request(path=name))
+            while not future.done():
+                ex.spin_once(timeout_sec=0.01)
+            answered = time.monotonic() - t0
+            end = time.monotonic() + 1.0
+            while time.monotonic() < end:
+                ex.spin_once(timeout_sec=0.01)
+            t = [m for m, _, _ in probe.arrivals[('/', 'hair_state')] if m >= t0]
+            gaps.append({'style': name, 'strips': strips if name == 'largest' else 46,
+                         'success': future.result().success, 'answer_s': answered,
+                         'longest_gap_ms': 1e3 * max(b - a for a, b in zip(t, t[1:]))})
+        return gaps
+    finally:
+        ex.shutdown()
+        client.destroy_node()
+        rclpy.try_shutdown()
+        node.send_signal(2)
+        node.wait(timeout=15)
+
+
+def run(quick=False, max_avatars=8):
+    """Measure 1, 2, ... avatars until one fails its rates; then the load gap."""
+    duration = 5.0 if quick else 10.0
+    out = {'runs': [], 'meshcat': None}
+    sustained = 0
+    with tempfile.TemporaryDirectory() as workdir:
+        for k in range(1, (2 if quick else max_avatars) + 1):
+            records, ok, meshcat = run_avatars(k, duration, workdir)
+            out['runs'] += records
+            if k == 1:
+                out['meshcat'] = meshcat
+            if not ok:
+                break
+            sustained = k
+        out['avatars_sustained_at_30hz'] = sustained
+        out['load_gap'] = load_gap(workdir)
+    return out
