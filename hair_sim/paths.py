@@ -30,3 +30,8 @@ def hairstyles_dir():
 def shipped_style(name):
     """Return the path of a shipped hairstyle by name (without .yaml)."""
     return os.path.join(hairstyles_dir(), name + '.yaml')
+
+
+def shipped_head(name):
+    """Return the path of a shipped head model by name (without .yaml)."""
+    return os.path.join(heads_dir(), name + '.yaml')

@@ -16,11 +16,12 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
+from hair_sim import paths  # noqa: E402
 from hair_sim.modeling.hairstyle import hairstyle_from_dict, save_hairstyle  # noqa: E402
 from hair_sim.modeling.head import load_head  # noqa: E402
 from hair_sim.modeling.strips import snap_to_scalp  # noqa: E402
 
-HEAD = load_head(os.path.join(ROOT, 'config', 'heads', 'default_adult.yaml'))
+HEAD = load_head(paths.shipped_head('default_adult'))
 OUT = os.path.join(ROOT, 'config', 'hairstyles')
 
 

@@ -18,15 +18,13 @@ import numpy as np
 
 from hair_sim import load_hairstyle, load_head, paths
 from hair_sim.bench.common import cpu_time, DT_FULL, DT_QUICK, progress, save_figure
-from hair_sim.physics.params import PhysicsParams
+from hair_sim.physics.params import INTEGRATORS, PhysicsParams
 from hair_sim.bench.scenarios import demo
 from hair_sim.physics.simulator import HairSimulator
 
-INTEGRATORS = ('explicit', 'implicit')
-
 
 def _head():
-    return load_head(paths.heads_dir() + '/default_adult.yaml')
+    return load_head(paths.shipped_head('default_adult'))
 
 
 def _bare(rest, integrator, **params):

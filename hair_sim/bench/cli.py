@@ -23,7 +23,8 @@ def main(argv=None):
     """Run one benchmark command; stress exits 1 if a promised case failed."""
     parser = argparse.ArgumentParser(prog='hair_sim_bench', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress', 'node', 'budget'])
+    parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress', 'node',
+                                            'budget'])
     parser.add_argument('--json', action='store_true', help='print JSON on stdout')
     parser.add_argument('--quick', action='store_true', help='a short run (under a minute)')
     parser.add_argument('--plots', default='bench_out', help='directory for PNG plots')

@@ -15,12 +15,13 @@ from hair_sim import load_hairstyle, paths
 from hair_sim.bench.common import progress, save_figure
 from hair_sim.bench.scenarios import demo
 from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator
+from hair_sim.physics.simulator import SUBSTEPS_PER_60HZ_FRAME as SUBSTEPS
+from hair_sim.render import HairRenderer
 from hair_sim.sinks.markers import MarkerEncoder, MarkerLayout
 
 THESIS_FPS = {20: 81, 52: 79, 84: 67, 116: 59, 148: 46, 180: 41}
 STRIPS_FULL = [20, 52, 84, 116, 148, 180, 500, 1000, 2000]
 STRIPS_QUICK = [20, 180]
-SUBSTEPS = int(round(1.0 / (60 * DEFAULT_DT)))
 
 
 def meshcat_encode(mesh):
@@ -64,9 +65,9 @@ def row(n_strips, repeats):
     for _ in range(20):
         step()
     step_ms = median_ms(step, repeats * SUBSTEPS)
-    renderer = sim.renderer()
+    renderer = HairRenderer.for_simulator(sim)
     R, p = sim.head_pose
-    # the renderer itself, not sim.mesh(): that reuses the mesh of an unchanged state
+    # renderer.mesh, not mesh_of: that reuses the mesh of an unchanged state
     mesh_ms = median_ms(lambda: renderer.mesh(sim.pos, R, p), repeats)
     mesh = renderer.mesh(sim.pos, R, p)
     layout = MarkerLayout(sim.strips.n_strips, mesh.tris_per_strip, mesh)

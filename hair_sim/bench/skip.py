@@ -14,13 +14,15 @@ from hair_sim import load_hairstyle, paths
 from hair_sim.bench.common import progress
 from hair_sim.bench.scenarios import demo
 from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator
+from hair_sim.physics.simulator import SUBSTEPS_PER_60HZ_FRAME as SUBSTEPS
+from hair_sim.render import HairRenderer
 
-SUBSTEPS = int(round(1.0 / (60 * DEFAULT_DT)))
 FRONT = [0.8, 0.0, 0.0]
 
 
 def _frame_ms(sim, frames, moving=True, viewpoint=None):
     """Median ms of frames: SUBSTEPS steps (with the demo motion if moving) and a mesh."""
+    renderer = HairRenderer.for_simulator(sim)
     times = []
     for f in range(frames + 2):
         t0 = time.perf_counter()
@@ -29,7 +31,7 @@ def _frame_ms(sim, frames, moving=True, viewpoint=None):
             if moving:
                 sim.set_head_pose(t, *demo(t))
             sim.step(DEFAULT_DT)
-        sim.mesh(viewpoint=viewpoint)
+        renderer.mesh_of(sim, viewpoint)
         if f >= 2:
             times.append(time.perf_counter() - t0)
     return 1e3 * float(np.median(times))
@@ -63,7 +65,8 @@ def feature_records(style, frames):
         + ('' if asleep.sleeping else ' (did not fall asleep!)'))
     rec('culling from the front (building the mesh)', _mesh_ms(asleep, frames),
         _mesh_ms(asleep, frames, FRONT), 'strips drawn %d of %d; the culled ones are not sent '
-        'to meshcat either' % (asleep.mesh(viewpoint=FRONT).n_strips, style.n_strips))
+        'to meshcat either' % (HairRenderer.for_simulator(asleep).mesh_of(
+            asleep, FRONT).n_strips, style.n_strips))
     windy = _sim(style)
     windy.set_wind([3.0, 1.0, 0.0], turbulence=0.5, seed=3)
     rec('wind off', _frame_ms(windy, frames), awake_ms, 'no drag evaluated')
@@ -78,7 +81,7 @@ def feature_records(style, frames):
 
 def _mesh_ms(sim, frames, viewpoint=None):
     """Mean ms of building the mesh afresh (the state cache is bypassed)."""
-    r = sim.renderer()
+    r = HairRenderer.for_simulator(sim)
     R, p = sim.head_pose
     r.mesh(sim.pos, R, p, viewpoint)
     t0 = time.perf_counter()

@@ -19,13 +19,12 @@ import numpy as np
 
 from hair_sim import load_hairstyle, load_head, paths
 from hair_sim.bench.common import progress, save_figure
-from hair_sim.physics.params import RANGES
+from hair_sim.physics.params import INTEGRATORS, RANGES
 from hair_sim.bench.scenarios import quat_from_euler, violent
 from hair_sim.physics.simulator import HairSimulator, stability_problem
 
 DTS_FULL = [1 / 1000, 1 / 240, 1 / 60, 1 / 30]
 DTS_QUICK = [1 / 240, 1 / 60]
-INTEGRATORS = ('explicit', 'implicit')
 
 
 def shake(t):
@@ -81,7 +80,7 @@ def run_case(name, integrator, dt, quick, style):
         motion = make_random(7)
         duration = (1e3 if quick else 1e5) * dt
     if poles:
-        head = load_head(paths.heads_dir() + '/default_adult.yaml')
+        head = load_head(paths.shipped_head('default_adult'))
         z = np.linspace(0, 0.2, 6)[:, None]
         rest = np.stack([np.array([0.0, 0.0, 0.3]) + z * [0, 0, 1],
                          np.array([0.0, 0.12, -0.02]) + z * [0, 0, -1]])

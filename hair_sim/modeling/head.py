@@ -20,6 +20,7 @@ import numpy as np
 from hair_sim.modeling import fields
 from hair_sim.modeling.errors import HairstyleError
 from hair_sim.modeling.yamlio import read_yaml
+from hair_sim.vecmath import nearest_on_spheres_many
 
 
 @dataclass
@@ -55,14 +56,10 @@ class HeadModel:
     def nearest_on_scalp(self, points):
         """Radially project points (..., 3) onto the scalp sphere whose surface is nearest."""
         p = np.asarray(points, dtype=np.float64)
-        rel = p[..., None, :] - self.scalp[:, :3]
-        dist = np.linalg.norm(rel, axis=-1)
-        k = np.argmin(dist - self.scalp[:, 3], axis=-1)
-        c = self.scalp[k, :3]
-        r = self.scalp[k, 3]
-        d = np.take_along_axis(dist, k[..., None], axis=-1)[..., 0]
-        direction = (p - c) / np.maximum(d, 1e-12)[..., None]
-        return c + direction * r[..., None]
+        flat = np.ascontiguousarray(p.reshape(-1, 3))
+        out = nearest_on_spheres_many(flat, np.ascontiguousarray(self.scalp),
+                                      np.empty_like(flat))
+        return out.reshape(p.shape)
 
     def hairline_z(self, x):
         """Height of the hairline at head-frame x (linear from back to front, clamped)."""

@@ -1,6 +1,6 @@
-"""Strand physics: Anjyo's angular-moment model with collisions and springs (thesis 4-5)."""
+"""Strand physics: the shared forces, two strand models and the HairSimulator driver."""
 
-from hair_sim.physics.params import PhysicsParams
+from hair_sim.physics.params import MODELS, PhysicsParams
 from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator, stability_problem
 
-__all__ = ['DEFAULT_DT', 'HairSimulator', 'PhysicsParams', 'stability_problem']
+__all__ = ['DEFAULT_DT', 'HairSimulator', 'MODELS', 'PhysicsParams', 'stability_problem']

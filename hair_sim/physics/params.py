@@ -35,9 +35,11 @@ RANGES = {
     'max_head_acceleration': (1.0, 10000.0),
     'motion_smoothing': (0.0, 1.0),
     'clock_jump_back': (0.001, 86400.0),
+    'root_stiffness_scale': (0.0, 1e9),
+    'air_damping': (0.0, 100.0),
 }
 INTEGRATORS = ('explicit', 'implicit')
-MODELS = ('anjyo',)
+MODELS = ('anjyo', 'articulated')
 
 
 @dataclass
@@ -55,9 +57,19 @@ class PhysicsParams:
     # Hinge spring of eq. 3: k = stiffness_scale * E * I_area * hairs / l (a cantilever of
     # unbonded fibres); 1.0 is that estimate, raise it for gelled or styled hair.
     stiffness_scale: float = 1.0
+    # Which strand model: 'anjyo' (the thesis, eqs. 1-6: each segment swings about its
+    # start with its own inertia) or 'articulated' (an exact chain of rods on ball joints).
+    model: str = 'anjyo'
+    # The first joint's (the follicle's) stiffness is this times the others'; articulated
+    # model only (very large: clamped).
+    root_stiffness_scale: float = 1.0
     # gamma_i / I_i of eq. 1 (1/s). 12/s gives a damping ratio of about 0.12 at the default
-    # hinge frequency: hair swings a few times and settles within about 1 s.
+    # hinge frequency: hair swings a few times and settles within about 1 s. The
+    # articulated model damps each joint's relative rotation with d = damping * m l^2 / 3.
     damping: float = 12.0
+    # A force -air_damping * m * v on each segment's centre, relative to still air (1/s);
+    # separate from wind drag.
+    air_damping: float = 0.0
     gravity: float = 9.81               # m/s^2, along -z of the world frame
     # Turn the hinges' rest directions so the modeled style is the equilibrium under
     # gravity with the head upright (styled hair holds its shape); off: it sags first.
@@ -111,6 +123,8 @@ class PhysicsParams:
                     raise ValueError('%s = %r is outside [%g, %g]' % (f.name, v, lo, hi))
             elif f.type in ('bool', bool) and not isinstance(v, bool):
                 raise ValueError('%s must be true or false, not %r' % (f.name, v))
+        if self.model not in MODELS:
+            raise ValueError('model must be one of %s, not %r' % (', '.join(MODELS), self.model))
         if self.integrator not in INTEGRATORS:
             raise ValueError('integrator must be one of %s, not %r'
                              % (', '.join(INTEGRATORS), self.integrator))
@@ -129,6 +143,11 @@ class PhysicsParams:
     def linear_density(self):
         """Return the mass per metre of one strand (kg/m)."""
         return self.hairs_per_strand * math.pi * self.hair_radius ** 2 * self.hair_density
+
+    @property
+    def bundle_radius(self):
+        """Return the radius (m) of a strand's bundle of fibres packed side by side."""
+        return self.hair_radius * math.sqrt(self.hairs_per_strand)
 
     @property
     def bending_stiffness(self):

@@ -1,4 +1,9 @@
-"""HairSimulator: the thin class users call; state lives in arrays handed to the kernels."""
+"""
+HairSimulator: the driver users call. It owns the strands, the head's motion, the wind,
+the forces pass, sleep and the counters; a strand model (picked by name, like Warp's
+integrators) advances the strands under those forces. State lives in contiguous arrays
+handed to module-level numba kernels (physics/forces.py, physics/solvers/).
+"""
 
 from dataclasses import asdict
 import math
@@ -7,21 +12,32 @@ import time as _time
 import numpy as np
 
 from hair_sim.modeling.strips import build_strips
-from hair_sim.physics import kernels
+from hair_sim.physics import forces as F
 from hair_sim.physics.motion import HeadMotion, quat_to_matrix, rotation_vector
 from hair_sim.physics.params import PhysicsParams
+from hair_sim.physics.solvers.anjyo import AnjyoSolver
+from hair_sim.physics.solvers.articulated import ArticulatedSolver
 from hair_sim.physics.wind import Wind
 
 DEFAULT_DT = 1.0 / 240.0       # s: 4 steps per 60 Hz frame (pendulum period within 1 %)
+SUBSTEPS_PER_60HZ_FRAME = int(round(1.0 / (60.0 * DEFAULT_DT)))
 MAX_DT = 0.1
 STABILITY_MARGIN = 0.9         # explicit terms need omega * dt < 2 * margin
+MAX_SPHERES = 63               # collision spheres (a 64-bit mask per strand)
+SOLVERS = {'anjyo': AnjyoSolver, 'articulated': ArticulatedSolver}
+# The head counts as still (sleep may begin) below these
+STILL_SPEED = 1e-4             # m/s and rad/s
+STILL_ACCELERATION = 1e-3      # m/s^2
+# Angular acceleration is clamped at max_head_acceleration over this lever (m): a point a
+# head's radius from the centre then sees no more than max_head_acceleration.
+ANGULAR_ACCELERATION_LEVER = 0.1
 
 
 class HairSimulator:
     """
     Simulate every strand of a hairstyle (thesis ch. 4-5).
 
-        sim = HairSimulator(style, integrator='implicit')
+        sim = HairSimulator(style, model='articulated')
         sim.set_head_pose(t, position_xyz, quaternion_xyzw)
         sim.set_wind((3, 0, 0), turbulence=0.2, seed=1)
         sim.step(1 / 240)
@@ -56,7 +72,6 @@ class HairSimulator:
         self.last_step_time = 0.0
         self.stability_dt = DEFAULT_DT      # the step set_params checks stability at
         self.state_version = 0              # bumped whenever positions may have changed
-        self._mesh_cache = None
         self.broad_phase = True             # skip spheres a strand cannot reach
         self._R = np.eye(3)
         self._p = np.zeros(3)
@@ -84,7 +99,6 @@ class HairSimulator:
         current head pose.
         """
         self.params = old.params
-        self._update_material()
         self.motion = old.motion
         self.motion.params = old.params
         self.wind = old.wind
@@ -93,8 +107,199 @@ class HairSimulator:
         self.stability_dt = old.stability_dt
         self.broad_phase = old.broad_phase
         self._R, self._p = old._R.copy(), old._p.copy()
+        self._make_solver()
         self._place_at_rest()
         self.state_version = old.state_version + 1
+
+    def _set_geometry(self, style, rest, head, pairs):
+        """Build every per-segment array from rest strands (head frame)."""
+        if len(head.collision) > MAX_SPHERES:
+            raise ValueError('at most %d collision spheres are supported' % MAX_SPHERES)
+        F.guard_rest_shape(rest, np.ascontiguousarray(head.collision))
+        seg = np.diff(rest, axis=1)
+        length = np.linalg.norm(seg, axis=2)
+        if length.min() < 1e-5:
+            raise ValueError('a segment is shorter than 0.01 mm')
+        self.style = style
+        self.strips = None
+        self.rest = rest
+        self.head = head
+        self.root_head = np.ascontiguousarray(rest[:, 0])
+        self.modeled_dir = seg / length[..., None]
+        self.length = np.ascontiguousarray(length)
+        self.reach = length.sum(axis=1)
+        self.spheres_head = np.ascontiguousarray(self.head.collision)
+        self.n_scalp = len(self.head.scalp)
+        n_s, n_seg = length.shape
+        self.pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
+        self.rest1 = np.linalg.norm(rest[self.pairs[:, 1]] - rest[self.pairs[:, 0]], axis=2) \
+            if len(self.pairs) else np.zeros((0, n_seg + 1))
+        scalp_head = np.ascontiguousarray(self.head.scalp)
+        self.wall_sign = np.ones((len(self.pairs), n_seg + 1, 2))
+        for q, (a, b) in enumerate(self.pairs):
+            for j in range(1, n_seg + 1):
+                for side, (me, other) in enumerate(((a, b), (b, a))):
+                    sd = F.wall_signed_distance(rest, scalp_head, me, other, j)[0]
+                    self.wall_sign[q, j, side] = 1.0 if sd >= 0 else -1.0
+        self.rest3 = self._scalp_rest_lengths(self.params.scalp_spring_reach)
+        self.pos = np.zeros((n_s, n_seg + 1, 3))
+        self.pos_prev = np.zeros_like(self.pos)
+        self.vel = np.zeros_like(self.pos)
+        self.f_dist = np.zeros((n_s, n_seg, 3))
+        self.f_end = np.zeros((n_s, n_seg, 3))
+        self.masks = np.zeros(n_s, dtype=np.int64)
+        self.roots = np.zeros((n_s, 3))
+        self.root_vel = np.zeros((n_s, 3))
+        self.root_acc = np.zeros((n_s, 3))
+        self._proj = np.zeros((n_s, n_seg + 1, 3))
+        self._spheres = np.zeros_like(self.spheres_head)
+        self._sphere_vel = np.zeros((len(self.spheres_head), 3))
+        self.stats = np.zeros(F.N_STATS)
+        self._make_solver()
+        self._place_at_rest()
+
+    def _make_solver(self):
+        self.mass = self.params.linear_density * self.length
+        self.gravity = np.array([0.0, 0.0, -self.params.gravity])
+        self.solver = SOLVERS[self.params.model](self)
+
+    def _update_material(self):
+        """Recompute masses and the model's constants from the parameters."""
+        self.mass = self.params.linear_density * self.length
+        self.gravity = np.array([0.0, 0.0, -self.params.gravity])
+        self.solver.update_material(self)
+
+    # --------------------------------------------- the kernels' bundles (views, no copies)
+    @property
+    def strands(self):
+        """Return the strands' arrays as the kernels take them."""
+        return F.Strands(pos=self.pos, pos_prev=self.pos_prev, vel=self.vel,
+                         length=self.length, mass=self.mass)
+
+    @property
+    def forces(self):
+        """Return the per-segment force arrays (world frame)."""
+        return F.Forces(f_dist=self.f_dist, f_end=self.f_end)
+
+    @property
+    def bodies(self):
+        """Return the collision spheres in the world, their velocities and the masks."""
+        return F.Bodies(spheres=self._spheres, sphere_vel=self._sphere_vel, masks=self.masks)
+
+    @property
+    def head_kinematics(self):
+        """Return the head's pose, velocities and accelerations of this step."""
+        return F.HeadKinematics(R=np.ascontiguousarray(self._R), p=self._p, v=self._v,
+                                a=self._a, w=self._w, alpha=self._alpha)
+
+    # ----------------------------------------------------------------- state
+    def _place_at_rest(self):
+        """Put every strand at its rest shape under the current head pose, at rest."""
+        self.solver.place_at_rest(self)
+        self.pos[:] = self.rest @ self._R.T + self._p
+        self.pos_prev[:] = self.pos
+        self.vel[:] = 0.0
+        self._v = np.zeros(3)
+        self._w = np.zeros(3)
+        self._a = np.zeros(3)
+        self._alpha = np.zeros(3)
+        self.last_dt = DEFAULT_DT
+        self._quiet = 0.0
+        self._quiet_ref = None
+        self.sleeping = False
+        self._wake_reason = 'start'
+        self.state_version += 1
+        self.stats[F.MIN_SIN_THETA] = 1.0
+
+    def reset(self, clock=False):
+        """
+        Put the hair back at its rest shape under the current head pose, awake.
+
+        clock=True also forgets the pose history, so the next pose re-anchors the clock
+        (after a tracker restart) and places the head.
+        """
+        if clock:
+            self.motion.reset()
+        self._place_at_rest()
+
+    def set_directions(self, directions):
+        """Place every segment along `directions` (n_strands, n_segments, 3, world), at rest."""
+        d = np.asarray(directions, dtype=np.float64)
+        d = np.ascontiguousarray(d / np.linalg.norm(d, axis=-1, keepdims=True))
+        self.solver.place(self, d)
+        roots = self.root_head @ self._R.T + self._p
+        self.pos[:, 0] = roots
+        self.pos[:, 1:] = roots[:, None] + np.cumsum(d * self.length[..., None], axis=1)
+        self.pos_prev[:] = self.pos
+        self.vel[:] = 0.0
+        self.state_version += 1
+        self._wake('directions')
+
+    def kinetic_energy(self):
+        """Return the kinetic energy (J) of the strands."""
+        return self.solver.kinetic_energy(self)
+
+    def energy(self):
+        """Return (kinetic, gravitational, spring) energy (J); articulated model only."""
+        if not isinstance(self.solver, ArticulatedSolver):
+            raise ValueError('energy() is defined for the articulated model')
+        centres = 0.5 * (self.pos[:, 1:] + self.pos[:, :-1])
+        grav = float((self.mass * centres[..., 2]).sum() * self.params.gravity)
+        return self.solver.kinetic_energy(self), grav, self.solver.potential_energy(self)
+
+    # ----------------------------------------------------------------- inputs
+    def set_head_pose(self, stamp_s, position_xyz, quaternion_xyzw):
+        """Add a stamped head pose (world frame); returns the verdict string (see motion)."""
+        return self.motion.add(stamp_s, position_xyz, quaternion_xyzw, self.time)
+
+    def set_wind(self, velocity_xyz, turbulence=0.0, seed=0):
+        """Set the wind (m/s, world frame); speeds above max_wind_speed are clamped."""
+        v = np.array(velocity_xyz, dtype=np.float64).reshape(3)
+        if not np.all(np.isfinite(v)) or not math.isfinite(float(turbulence)):
+            raise ValueError('wind must be finite')
+        speed = float(np.linalg.norm(v))
+        clamped = speed > self.params.max_wind_speed
+        if clamped:
+            v *= self.params.max_wind_speed / speed
+        turbulence = min(max(float(turbulence), 0.0), 1.0)
+        old = (self.wind.velocity.copy(), self.wind.turbulence, self.wind.seed)
+        self.wind.set(v, turbulence, seed)
+        if not (np.array_equal(old[0], v) and old[1] == turbulence and old[2] == self.wind.seed):
+            self._wake('wind')
+        return 'clamped' if clamped else 'ok'
+
+    def set_params(self, **changes):
+        """
+        Change parameters (validated, stability-checked); the old ones stay on error.
+
+        A change of `model` starts the new model from the strands' current directions, at
+        rest.
+        """
+        new = self.params.replaced(**changes)
+        reason = stability_problem(new, self, self.stability_dt)
+        if reason:
+            raise ValueError(reason)
+        model_changed = new.model != self.params.model
+        self.params = new
+        self.motion.params = new
+        if model_changed:
+            directions = np.diff(self.pos, axis=1) / self.length[..., None]
+            self._make_solver()
+            self.solver.place(self, directions)
+            self.pos_prev[:] = self.pos
+            self.vel[:] = 0.0
+        else:
+            self._update_material()
+        if 'scalp_spring_reach' in changes:
+            self.rest3 = self._scalp_rest_lengths(new.scalp_spring_reach)
+        self._wake('params')
+
+    def plan_step(self, dt):
+        """Set the step later parameter changes are checked at; refuse an unstable one."""
+        reason = stability_problem(self.params, self, dt)
+        if reason:
+            raise ValueError(reason)
+        self.stability_dt = float(dt)
 
     def skip_time(self, seconds):
         """
@@ -122,171 +327,6 @@ class HairSimulator:
         # past the newest pose the head is held there: the hair follows no newer pose
         return stamp if newest is None else min(stamp, newest)
 
-    def _set_geometry(self, style, rest, head, pairs):
-        """Build every per-segment array from rest strands (head frame)."""
-        if len(head.collision) > 63:
-            raise ValueError('at most 63 collision spheres are supported')
-        self.rest_guarded = kernels.guard_rest_shape(rest, np.ascontiguousarray(head.collision))
-        seg = np.diff(rest, axis=1)
-        length = np.linalg.norm(seg, axis=2)
-        if length.min() < 1e-5:
-            raise ValueError('a segment is shorter than 0.01 mm')
-        self.style = style
-        self.strips = None
-        self.rest = rest
-        self.head = head
-        self.root_head = np.ascontiguousarray(rest[:, 0])
-        self.modeled_dir = seg / length[..., None]
-        self.length = np.ascontiguousarray(length)
-        self.reach = length.sum(axis=1)
-        self.spheres_head = np.ascontiguousarray(self.head.collision)
-        self.n_scalp = len(self.head.scalp)
-        n_s, n_seg = length.shape
-        self.pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
-        self.rest1 = np.linalg.norm(rest[self.pairs[:, 1]] - rest[self.pairs[:, 0]], axis=2) \
-            if len(self.pairs) else np.zeros((0, n_seg + 1))
-        scalp_head = np.ascontiguousarray(self.head.scalp)
-        self.wall_sign = np.ones((len(self.pairs), n_seg + 1, 2))
-        for q, (a, b) in enumerate(self.pairs):
-            for j in range(1, n_seg + 1):
-                for side, (me, other) in enumerate(((a, b), (b, a))):
-                    sd = kernels.wall_signed_distance(rest, scalp_head, me, other, j)[0]
-                    self.wall_sign[q, j, side] = 1.0 if sd >= 0 else -1.0
-        self.rest3 = self._scalp_rest_lengths(self.params.scalp_spring_reach)
-        self.theta = np.zeros((n_s, n_seg))
-        self.phi = np.zeros((n_s, n_seg))
-        self.chart = np.zeros((n_s, n_seg, 3, 3))
-        self.f_dist = np.zeros((n_s, n_seg, 3))
-        self.f_end = np.zeros((n_s, n_seg, 3))
-        self.masks = np.zeros(n_s, dtype=np.int64)
-        self._roots = np.zeros((n_s, 3))
-        self._proj = np.zeros((n_s, n_seg + 1, 3))
-        self._root_acc = np.zeros((n_s, 3))
-        self._spheres = np.zeros_like(self.spheres_head)
-        self._sphere_vel = np.zeros((len(self.spheres_head), 3))
-        self.stats = np.zeros(5)
-        self._update_material()
-        self._place_at_rest()
-
-    def _update_material(self):
-        """Recompute per-segment mass, inertia, hinge stiffness and rest directions."""
-        p = self.params
-        self.mass = p.linear_density * self.length
-        self.inv_inertia = 3.0 / (self.mass * self.length ** 2)       # rod about its end
-        self.k_hinge = p.bending_stiffness / self.length              # cantilever, eq. 3
-        self.gravity = np.array([0.0, 0.0, -p.gravity])
-        self.rest_dir = np.ascontiguousarray(self._compensated_rest())
-
-    def _compensated_rest(self):
-        """
-        Return rest directions (head frame) whose equilibrium under gravity is the model.
-
-        A styled hairstyle holds its shape: with gravity_compensation each hinge's rest
-        direction (eq. 3) is turned against the gravity moment (eq. 4) it carries with the
-        head upright, by -tau / k, so the modeled strands are the resting state. Turns are
-        capped at 0.5 rad (hair too soft to hold such a style simply sags).
-        """
-        d = self.modeled_dir
-        if not self.params.gravity_compensation:
-            return d.copy()
-        force = self.mass[..., None] * np.array([0.0, 0.0, -self.params.gravity])
-        tau = 0.5 * self.length[..., None] * np.cross(d, force)       # about the start
-        k = self.k_hinge[..., None]
-        # no hinge (k = 0) can hold no style: then the hair simply hangs
-        rot = np.where(k > 0, -tau / np.where(k > 0, k, 1.0), 0.0)
-        angle = np.linalg.norm(rot, axis=-1, keepdims=True)
-        capped = np.minimum(angle, 0.5)
-        axis = rot / np.maximum(angle, 1e-300)
-        c, s = np.cos(capped), np.sin(capped)
-        out = d * c + np.cross(axis, d) * s + axis * (axis * d).sum(-1, keepdims=True) * (1 - c)
-        return out / np.linalg.norm(out, axis=-1, keepdims=True)
-
-    def _place_at_rest(self):
-        """Put every strand at its rest shape under the current head pose, at rest."""
-        world_dir = np.ascontiguousarray(self.modeled_dir @ self._R.T)
-        kernels.init_charts(world_dir, self.chart, self.theta, self.phi)
-        self.theta_prev = self.theta.copy()
-        self.phi_prev = self.phi.copy()
-        rest_world = self.rest @ self._R.T + self._p
-        self.pos = np.ascontiguousarray(rest_world)
-        self.pos_prev = self.pos.copy()
-        self._v = np.zeros(3)
-        self._w = np.zeros(3)
-        self._a = np.zeros(3)
-        self._alpha = np.zeros(3)
-        self._h_prev = DEFAULT_DT
-        self._quiet = 0.0
-        self._quiet_ref = None
-        self.sleeping = False
-        self._wake_reason = 'start'
-        self.state_version += 1
-        self.stats[3] = 1.0
-
-    def reset(self, clock=False):
-        """
-        Put the hair back at its rest shape under the current head pose, awake.
-
-        clock=True also forgets the pose history, so the next pose re-anchors the clock
-        (after a tracker restart) and places the head.
-        """
-        if clock:
-            self.motion.reset()
-        self._place_at_rest()
-
-    def set_directions(self, directions):
-        """Place every segment along `directions` (n_strands, n_segments, 3, world), at rest."""
-        d = np.asarray(directions, dtype=np.float64)
-        d = np.ascontiguousarray(d / np.linalg.norm(d, axis=-1, keepdims=True))
-        kernels.init_charts(d, self.chart, self.theta, self.phi)
-        self.theta_prev[:] = self.theta
-        self.phi_prev[:] = self.phi
-        roots = self.root_head @ self._R.T + self._p
-        self.pos[:, 0] = roots
-        self.pos[:, 1:] = roots[:, None] + np.cumsum(d * self.length[..., None], axis=1)
-        self.pos_prev[:] = self.pos
-        self.state_version += 1
-        self._wake('directions')
-
-    def kinetic_energy(self):
-        """Return the kinetic energy (J) of the segments' midpoints over the last step."""
-        v = (self.pos - self.pos_prev) / self._h_prev
-        vm = 0.5 * (v[:, 1:] + v[:, :-1])
-        return float(0.5 * (self.mass[..., None] * vm ** 2).sum())
-
-    # ----------------------------------------------------------------- inputs
-    def set_head_pose(self, stamp_s, position_xyz, quaternion_xyzw):
-        """Add a stamped head pose (world frame); returns the verdict string (see motion)."""
-        return self.motion.add(stamp_s, position_xyz, quaternion_xyzw, self.time)
-
-    def set_wind(self, velocity_xyz, turbulence=0.0, seed=0):
-        """Set the wind (m/s, world frame); speeds above max_wind_speed are clamped."""
-        v = np.array(velocity_xyz, dtype=np.float64).reshape(3)
-        if not np.all(np.isfinite(v)) or not math.isfinite(float(turbulence)):
-            raise ValueError('wind must be finite')
-        speed = float(np.linalg.norm(v))
-        clamped = speed > self.params.max_wind_speed
-        if clamped:
-            v *= self.params.max_wind_speed / speed
-        turbulence = min(max(float(turbulence), 0.0), 1.0)
-        old = (self.wind.velocity.copy(), self.wind.turbulence, self.wind.seed)
-        self.wind.set(v, turbulence, seed)
-        if not (np.array_equal(old[0], v) and old[1] == turbulence and old[2] == self.wind.seed):
-            self._wake('wind')
-        return 'clamped' if clamped else 'ok'
-
-    def set_params(self, **changes):
-        """Change parameters (validated, stability-checked); the old ones stay on error."""
-        new = self.params.replaced(**changes)
-        reason = stability_problem(new, self, self.stability_dt)
-        if reason:
-            raise ValueError(reason)
-        self.params = new
-        self.motion.params = new
-        self._update_material()
-        if 'scalp_spring_reach' in changes:
-            self.rest3 = self._scalp_rest_lengths(new.scalp_spring_reach)
-        self._wake('params')
-
     def _scalp_rest_lengths(self, reach):
         """Return the rest length of every vertex's scalp spring (type 3), -1 where none."""
         d3 = np.linalg.norm(self.rest - self.head.nearest_on_scalp(self.rest), axis=2)
@@ -313,9 +353,10 @@ class HairSimulator:
         if self.motion.teleported:                  # carry the hair rigidly, no kick
             self.motion.teleported = False
             dR = R_new @ self._R.T
-            kernels.rotate_charts(self.chart, dR)
+            self.solver.rotate(dR)
             for arr in (self.pos, self.pos_prev):
                 arr[:] = (arr - self._p) @ dR.T + p_new
+            self.vel[:] = 0.0
             self._R, self._p = R_new, p_new.copy()
             self.state_version += 1
             self._v[:] = 0.0
@@ -338,15 +379,15 @@ class HairSimulator:
         if na > amax:
             a *= amax / na
         nal = np.linalg.norm(alpha)
-        if nal > amax / 0.1:
-            alpha *= (amax / 0.1) / nal
+        if nal > amax / ANGULAR_ACCELERATION_LEVER:
+            alpha *= (amax / ANGULAR_ACCELERATION_LEVER) / nal
         self._v, self._w, self._a, self._alpha = v_f, w_f, a, alpha
         self._R, self._p = R_new, p_new.copy()
         return moved
 
     def _head_still(self):
-        return (np.abs(self._v).max() < 1e-4 and np.abs(self._w).max() < 1e-4
-                and np.abs(self._a).max() < 1e-3)
+        return (np.abs(self._v).max() < STILL_SPEED and np.abs(self._w).max() < STILL_SPEED
+                and np.abs(self._a).max() < STILL_ACCELERATION)
 
     def step(self, dt=DEFAULT_DT):
         """Advance the simulation by dt seconds; return False when asleep (no work done)."""
@@ -377,9 +418,9 @@ class HairSimulator:
             self._quiet += h
             if self._quiet >= self.params.sleep_delay:
                 self.sleeping = True
-                self.theta_prev[:] = self.theta
-                self.phi_prev[:] = self.phi
+                self.solver.hold()
                 self.pos_prev[:] = self.pos
+                self.vel[:] = 0.0
         else:
             self._quiet = 0.0
             self._quiet_ref = self.pos.copy() if inputs_steady else None
@@ -388,80 +429,79 @@ class HairSimulator:
         return True
 
     def _simulate(self, t, h):
-        """One awake step: forces (eqs. 5, 7-11), then eq. 1 root to tip with the guard."""
+        """One awake step: the shared forces (eqs. 5, 7-11), then the strand model."""
         p = self.params
-        R = np.ascontiguousarray(self._R)
-        roots, root_acc = self._roots, self._root_acc
-        spheres, sphere_vel = self._spheres, self._sphere_vel
-        kernels.root_kinematics(self.root_head, self.spheres_head, R, self._p, self._v,
-                                self._a, self._w, self._alpha, roots, root_acc, spheres,
-                                sphere_vel)
         c = self.counters
+        head = self.head_kinematics
+        bodies = self.bodies
+        F.root_kinematics(
+            head,
+            self.root_head,
+            self.spheres_head,
+            self.roots,
+            self.root_vel,
+            self.root_acc,
+            bodies,
+        )
         if p.collisions:
             if self.broad_phase:
-                c['broad_phase_checks'] += kernels.strand_sphere_masks(roots, self.reach,
-                                                                       spheres, self.masks)
+                c['broad_phase_checks'] += F.strand_sphere_masks(
+                    self.roots,
+                    self.reach,
+                    bodies.spheres,
+                    self.masks,
+                )
             else:                          # every sphere tested against every strand
-                self.masks[:] = (np.int64(1) << np.int64(len(spheres))) - 1
-        wind_on = self.wind.active
-        drag = 0.5 * p.air_density * p.drag_coefficient * p.drag_width
-        kernels.external_forces(self.pos, self.pos_prev, self._h_prev, self.mass, self.length,
-                                root_acc, self.gravity, wind_on, self.wind.velocity,
-                                self.wind.amplitude, self.wind.mode_dir, self.wind.mode_k,
-                                self.wind.mode_w, self.wind.mode_phase, t, drag,
-                                self.f_dist, self.f_end)
+                self.masks[:] = (np.int64(1) << np.int64(len(bodies.spheres))) - 1
+        self.solver.velocities(self, self.last_dt)
+        strands = self.strands
+        forces = self.forces
+        wind = self.wind
+        F.external_forces(
+            strands,
+            self.root_acc,
+            self.gravity,
+            F.WindField(velocity=wind.velocity, amplitude=wind.amplitude,
+                        mode_dir=wind.mode_dir, mode_k=wind.mode_k, mode_w=wind.mode_w,
+                        mode_phase=wind.mode_phase),
+            wind.active,
+            t,
+            0.5 * p.air_density * p.drag_coefficient * p.drag_width,
+            p.air_damping,
+            self.solver.root_inertia,
+            forces,
+        )
         c['kernel_calls'] += 1
         if p.collisions:
-            c['contacts'] += kernels.reaction_constraint_forces(
-                self.pos, self.pos_prev, self._h_prev, self.length, spheres, sphere_vel,
-                self.masks, p.collision_stiffness, p.collision_damping, self.f_dist, self.f_end)
+            c['contacts'] += F.reaction_constraint_forces(
+                strands,
+                bodies,
+                p.collision_stiffness,
+                p.collision_damping,
+                forces,
+            )
             c['kernel_calls'] += 1
         if p.inter_strip and len(self.pairs):
-            c['wall_springs'] += kernels.strip_springs(
-                self.pos, self.length, spheres[:self.n_scalp], self.pairs, self.rest1,
-                p.neighbor_stiffness, self.wall_sign, p.wall_stiffness, p.wall_distance,
-                self.rest3, p.scalp_stiffness, self.f_end, self._proj)
+            c['wall_springs'] += F.strip_springs(
+                strands,
+                bodies.spheres[:self.n_scalp],
+                F.StripSprings(pairs=self.pairs, rest1=self.rest1, wall_sign=self.wall_sign,
+                               rest3=self.rest3, proj=self._proj),
+                F.SpringConstants(neighbor=p.neighbor_stiffness, wall=p.wall_stiffness,
+                                  wall_distance=p.wall_distance, scalp=p.scalp_stiffness),
+                forces,
+            )
             c['kernel_calls'] += 1
-        integ = kernels.EXPLICIT if p.integrator == 'explicit' else kernels.IMPLICIT
-        c['segment_updates'] += kernels.integrate_strands(
-            self.theta, self.phi, self.theta_prev, self.phi_prev, self.chart, self.rest_dir,
-            self.length, self.inv_inertia, self.k_hinge, p.damping, self.f_dist, self.f_end,
-            R, roots, spheres, self.masks, p.collisions, self.pos,
-            self.pos_prev, h, integ, self.stats)
+        c['segment_updates'] += self.solver.step(self, h, head.R, self.roots)
         c['kernel_calls'] += 1
         c['awake_steps'] += 1
         self.state_version += 1
-        c['recharts'] = int(self.stats[1])
-        c['guard_moves'] = int(self.stats[2])
-        c['turn_clamps'] = int(self.stats[4])
-        self._h_prev = h
+        c['recharts'] = int(self.stats[F.RECHARTS])
+        c['guard_moves'] = int(self.stats[F.GUARD_MOVES])
+        c['turn_clamps'] = int(self.stats[F.TURN_CLAMPS])
+        self.last_dt = h
 
     # ----------------------------------------------------------------- outputs
-    def renderer(self, point_centre=False):
-        """Return the HairRenderer of the current style (built once per style)."""
-        from hair_sim.render import HairRenderer
-        key = (id(self.style), point_centre)
-        if getattr(self, '_renderer_key', None) != key:
-            self._renderer = HairRenderer(self.style, self.strips, self.rest, self.head,
-                                          point_centre=point_centre)
-            self._renderer_key = key
-        return self._renderer
-
-    def mesh(self, viewpoint=None, point_centre=False):
-        """
-        Return the U-shape HairMesh of the current state (world frame, thesis 3).
-
-        The mesh is a function of the state, so while the hair sleeps (the state does not
-        change) the last one is handed out again: sleeping hair costs no rendering either.
-        """
-        key = (self.state_version, None if viewpoint is None else tuple(
-            float(v) for v in viewpoint), point_centre)
-        if self._mesh_cache is not None and self._mesh_cache[0] == key:
-            return self._mesh_cache[1]
-        mesh = self.renderer(point_centre).mesh(self.pos, self._R, self._p, viewpoint)
-        self._mesh_cache = (key, mesh)
-        return mesh
-
     def strand_positions(self):
         """Return a copy of the strand vertices, (n_strands, n_vertices, 3), world frame."""
         return self.pos.copy()
@@ -478,7 +518,13 @@ class HairSimulator:
     @property
     def min_sin_theta(self):
         """Return the smallest sin(theta) any segment has had (distance from the poles)."""
-        return float(self.stats[3])
+        return float(self.stats[F.MIN_SIN_THETA])
+
+    def diagnostics(self):
+        """Return the counters and the head-motion verdict counts, for a status report."""
+        out = dict(self.counters)
+        out.update({'pose_' + k: v for k, v in self.motion.counts.items()})
+        return out
 
 
 def stability_problem(params, sim, dt):
@@ -488,24 +534,4 @@ def stability_problem(params, sim, dt):
     sim: a simulator, or the (n_strands, n_segments) segment lengths of a style.
     """
     length = np.asarray(getattr(sim, 'length', sim), dtype=np.float64)
-    mass = params.linear_density * length
-    inv_i = 3.0 / (mass * length ** 2)
-    k_h = params.bending_stiffness / length
-    springs = 0.0
-    if params.inter_strip:
-        springs += params.neighbor_stiffness + params.wall_stiffness + params.scalp_stiffness
-    if params.collisions:
-        springs += params.collision_stiffness
-    # per-metre springs on a segment of mass lambda l, acting at its end: k l * l^2 / I
-    explicit = (0.5 * mass * params.gravity * length + springs * length ** 3) * inv_i
-    if params.integrator == 'explicit':
-        explicit = explicit + k_h * inv_i
-        if params.damping * dt > 2.0 * STABILITY_MARGIN:
-            return ('damping %g/s with the explicit integrator needs dt below %.2g s'
-                    % (params.damping, 2.0 * STABILITY_MARGIN / params.damping))
-    omega = float(np.sqrt(explicit.max()))
-    if omega * dt > 2.0 * STABILITY_MARGIN:
-        return ('unstable with the %s integrator at dt = %.4g s: the stiffest explicit term '
-                'has omega = %.0f rad/s, which needs dt below %.3g s'
-                % (params.integrator, dt, omega, 2.0 * STABILITY_MARGIN / omega))
-    return None
+    return SOLVERS[params.model].stability_problem(params, length, dt, STABILITY_MARGIN)

@@ -75,11 +75,28 @@ class HairRenderer:
         self._flags = np.zeros((self.n_strips, 2, self.lod.rows), dtype=np.int64)
         self._vis = np.zeros(self.n_strips, dtype=np.int64)
         self._bottoms = np.zeros_like(rest)
+        self._last_key = None
+        self._last = None
 
     @classmethod
     def for_simulator(cls, sim, point_centre=False):
         """Return the renderer of a simulator's style and strands."""
         return cls(sim.style, sim.strips, sim.rest, sim.head, point_centre=point_centre)
+
+    def mesh_of(self, sim, viewpoint=None):
+        """
+        Return the HairMesh of a simulator's current state (world frame, thesis 3).
+
+        The mesh is a function of the state, so while the hair sleeps (the state does not
+        change) the last one is handed out again: sleeping hair costs no rendering either.
+        """
+        key = (sim.state_version, None if viewpoint is None else tuple(
+            float(v) for v in viewpoint))
+        if self._last_key != key:
+            R, p = sim.head_pose
+            self._last = self.mesh(sim.pos, R, p, viewpoint)
+            self._last_key = key
+        return self._last
 
     def _world(self, R, p):
         scalp = self.head.scalp.copy()

@@ -6,6 +6,7 @@ import tempfile
 import numpy as np
 from PIL import Image
 
+from hair_sim.render.mesh import HairRenderer
 from hair_sim.render.raster import Camera
 from hair_sim.render.texture import texture_rgba
 
@@ -57,7 +58,7 @@ def shade(mesh, spheres, camera, texture=None, alpha_cut=60):
 def views_png(sim, path, size=300):
     """Write plain strips (top row) and textured U-shape strips (bottom) from 3 views."""
     R, p = sim.head_pose
-    renderer = sim.renderer()
+    renderer = HairRenderer.for_simulator(sim)
     plain = renderer.mesh(sim.pos, R, p, walls=False)
     full = renderer.mesh(sim.pos, R, p)
     texture = texture_rgba(sim.style.material)

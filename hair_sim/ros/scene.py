@@ -25,8 +25,6 @@ class Scene:
     version: int
     sim: object
     renderer: HairRenderer
-    _mesh_key: tuple = None
-    _mesh: object = None
 
     @property
     def style(self):
@@ -35,12 +33,7 @@ class Scene:
 
     def mesh(self, viewpoint=None):
         """Return the HairMesh of the current state (rebuilt only when the state changed)."""
-        key = (self.sim.state_version, None if viewpoint is None else tuple(viewpoint))
-        if key != self._mesh_key:
-            R, p = self.sim.head_pose
-            self._mesh = self.renderer.mesh(self.sim.pos, R, p, viewpoint)
-            self._mesh_key = key
-        return self._mesh
+        return self.renderer.mesh_of(self.sim, viewpoint)
 
 
 @dataclass

@@ -1,7 +1,6 @@
 """Each validation rule of head and hairstyle files, with the message it must give."""
 
 import copy
-import os
 
 import numpy as np
 import pytest
@@ -22,7 +21,7 @@ def write(tmp_path, data, name='style.yaml'):
     if not heads.exists():
         heads.mkdir()
         (heads / 'default_adult.yaml').write_text(
-            open(os.path.join(paths.heads_dir(), 'default_adult.yaml')).read())
+            open(paths.shipped_head('default_adult')).read())
     d = tmp_path / 'styles'
     d.mkdir(exist_ok=True)
     p = d / name
@@ -164,7 +163,7 @@ def test_malformed_yaml_and_wrong_top_level(tmp_path):
 
 def test_head_file_rules(tmp_path):
     """Head files: spheres need centres and positive radii; S must be inside the scalp."""
-    good = yaml.safe_load(open(os.path.join(paths.heads_dir(), 'default_adult.yaml')))
+    good = yaml.safe_load(open(paths.shipped_head('default_adult')))
     for mutate, fragment in [
             (lambda d: d['scalp_spheres'][0].update(radius=-1), 'radius'),
             (lambda d: d['scalp_spheres'][1].pop('center'), 'scalp_spheres[1]'),
@@ -180,5 +179,5 @@ def test_head_file_rules(tmp_path):
         with pytest.raises(HairstyleError) as info:
             load_head(str(p))
         assert fragment in str(info.value) and str(p) in str(info.value)
-    assert np.isclose(load_head(os.path.join(paths.heads_dir(), 'default_adult.yaml'))
+    assert np.isclose(load_head(paths.shipped_head('default_adult'))
                       .scalp[:, 3].max(), 0.075)

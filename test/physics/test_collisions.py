@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from hair_sim import DEFAULT_DT, HairSimulator
-from hair_sim.physics import kernels
+from hair_sim.physics import forces
 from hair_sim.bench.scenarios import drive, violent
 
 
@@ -28,7 +28,7 @@ def penetration_report(sim):
     t = np.clip(((c - a) * d).sum(-1) / (d * d).sum(-1), 0.0, 1.0)
     chord = sph[None, None, :, 3] - np.linalg.norm(a + t[..., None] * d - c, axis=-1)
     start_gap = np.linalg.norm(a - c, axis=-1) - sph[None, None, :, 3]
-    free = start_gap > kernels.CONTACT_SKIN
+    free = start_gap > forces.CONTACT_SKIN
     seg_len = np.linalg.norm(d, axis=-1)
     sag = seg_len ** 2 / (8 * sph[None, None, :, 3])
     free_depth = np.where(free, chord, -1.0).max()
@@ -61,9 +61,12 @@ def test_reaction_constraint_removes_inward_force_and_pushes_out():
     spheres = np.array([[0.0, 0.0, 0.0, 0.1]])
     f_dist = np.array([[[0.3, 0.0, -1.0]]])                         # pushes in and sideways
     f_end = np.zeros((1, 1, 3))
-    n = kernels.reaction_constraint_forces(pos, prev, 0.01, length, spheres, np.zeros((1, 3)),
-                                           np.array([1], dtype=np.int64), 2.0, 0.5, f_dist,
-                                           f_end)
+    strands = forces.Strands(pos=pos, pos_prev=prev, vel=(pos - prev) / 0.01, length=length,
+                             mass=np.ones((1, 1)))
+    bodies = forces.Bodies(spheres=spheres, sphere_vel=np.zeros((1, 3)),
+                           masks=np.array([1], dtype=np.int64))
+    n = forces.reaction_constraint_forces(strands, bodies, 2.0, 0.5,
+                                          forces.Forces(f_dist=f_dist, f_end=f_end))
     assert n == 1
     np.testing.assert_allclose(f_dist[0, 0], [0.3, 0.0, 0.0])      # eq. 7: tangential kept
     k, c = 2.0 * 0.101, 0.5 * 0.101
@@ -78,7 +81,7 @@ def wall_penetration(sim):
     for q, (a, b) in enumerate(sim.pairs):
         for j in range(1, pos.shape[1]):
             for side, (me, other) in enumerate(((a, b), (b, a))):
-                sd, _, _, _, along = kernels.wall_signed_distance(pos, sph, me, other, j)
+                sd, _, _, _, along = forces.wall_signed_distance(pos, sph, me, other, j)
                 if 0.0 <= along <= 1.0:             # beside the wall, not past its ends
                     total += max(0.0, -sd * sim.wall_sign[q, j, side])
     return total

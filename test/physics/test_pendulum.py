@@ -11,14 +11,13 @@ from hair_sim.physics import PhysicsParams
 
 def swing_period(integrator, length=0.03, dt=DEFAULT_DT, amplitude=0.02, periods=6):
     """Release a hanging segment from a small angle; return (measured, analytic) period."""
-    head = load_head(paths.heads_dir() + '/default_adult.yaml')
+    head = load_head(paths.shipped_head('default_adult'))
     root = np.array([0.0, 0.0, 1.0])                       # far from every sphere
     rest = np.array([[root, root + [0.0, 0.0, -length]]])
     sim = HairSimulator.from_strands(rest, head, integrator=integrator, damping=0.0,
                                      collisions=False, inter_strip=False)
     sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
-    sim.theta[0, 0] += amplitude
-    sim.theta_prev[0, 0] += amplitude                        # released at rest
+    sim.set_directions([[[math.sin(amplitude), 0.0, -math.cos(amplitude)]]])  # at rest
     angles, times = [], []
     for i in range(int(periods * 0.2 / dt) + 200):
         sim.step(dt)

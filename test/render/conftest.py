@@ -3,6 +3,7 @@
 import pytest
 
 from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, paths
+from hair_sim.render import HairRenderer
 
 
 @pytest.fixture(scope='module')
@@ -13,3 +14,9 @@ def settled():
     while not sim.sleeping:
         sim.step(DEFAULT_DT)
     return sim
+
+
+@pytest.fixture(scope='module')
+def renderer(settled):
+    """Return the renderer of the settled sample style."""
+    return HairRenderer.for_simulator(settled)

@@ -15,10 +15,10 @@ def walls_of(renderer, k):
     return edges, proj
 
 
-def test_projections_on_scalp_or_fixed_up_exactly(settled):
+def test_projections_on_scalp_or_fixed_up_exactly(settled, renderer):
     """Projected vertices lie on the scalp within delta; fix-ups have |AA'| = C, AA' normal."""
-    m = settled.mesh()
-    r = settled.renderer()
+    m = renderer.mesh_of(settled)
+    r = renderer
     edges, proj = walls_of(r, m.n_strips)
     head = settled.head
     flags = m.flags
@@ -118,10 +118,10 @@ def test_ordinary_too_far_and_reverse_volume_cases():
     np.testing.assert_allclose(proj - edge, np.tile([0, 0, 0.006], (5, 1)), atol=1e-12)
 
 
-def test_mesh_invariants_winding_and_uvs(settled):
+def test_mesh_invariants_winding_and_uvs(settled, renderer):
     """Indices in range, no degenerate triangle, one UV per vertex, counts, outward faces."""
-    m = settled.mesh()
-    lod = settled.renderer().lod
+    m = renderer.mesh_of(settled)
+    lod = renderer.lod
     C, R, S = lod.columns, lod.rows, m.n_strips
     assert m.vertices.shape == (S * (C + 4) * R, 3) and m.vertices.dtype == np.float32
     assert m.uvs.shape == (len(m.vertices), 2) and m.uvs.dtype == np.float32
@@ -146,12 +146,12 @@ def test_mesh_invariants_winding_and_uvs(settled):
                                np.broadcast_to(np.linspace(0, 1, C), (S, C)), atol=1e-7)
 
 
-def test_nothing_is_stored_between_frames(settled):
+def test_nothing_is_stored_between_frames(settled, renderer):
     """The U-shape is a function of the current strands: same input, same mesh; moved, new."""
-    a = settled.mesh()
-    b = settled.mesh()
+    a = renderer.mesh_of(settled)
+    b = renderer.mesh_of(settled)
     assert np.array_equal(a.vertices, b.vertices)
-    r = settled.renderer()
+    r = renderer
     R, p = settled.head_pose
     moved = r.mesh(settled.pos + [0.0, 0.0, 0.001], R, p + [0.0, 0.0, 0.001])
     np.testing.assert_allclose(moved.vertices - a.vertices, np.tile([0, 0, 0.001],

@@ -23,7 +23,7 @@ from helpers.node_process import Client, diagnostics_values, NodeProcess, rate, 
 
 HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BASE = yaml.safe_load(open(paths.shipped_style('bob_fringe')))
-HEAD = yaml.safe_load(open(os.path.join(paths.heads_dir(), 'default_adult.yaml')))
+HEAD = yaml.safe_load(open(paths.shipped_head('default_adult')))
 NODE = '/hair_sim'
 
 

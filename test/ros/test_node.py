@@ -117,14 +117,14 @@ def test_services_load_edit_save_reload_reset(node_env, tmp_path):
     assert not r.success and 'no hairstyle' in r.message
     assert node.sim.style.name == 'bob_fringe'
     assert call(ex, client, Trigger, '/hair_sim/reset', Trigger.Request()).success
-    before = node.sim.mesh()
+    before = node.scene.mesh()
     patch = node.sim.style.patches[0]
     req = EditControlPoint.Request(patch=0, control_hair=5, control_point=4)
     x, y, z = patch.points[5, 4] + [0.0, 0.0, 0.02]
     req.position.x, req.position.y, req.position.z = float(x), float(y), float(z)
     r = call(ex, client, EditControlPoint, '/hair_sim/edit_control_point', req)
     assert r.success, r.message
-    after = node.sim.mesh()
+    after = node.scene.mesh()
     changed = np.abs(after.vertices - before.vertices).reshape(
         after.n_strips, -1, 3).max(axis=(1, 2)) > 1e-3
     u = node.sim.strips.strand_u[node.sim.strips.strip_strands[:, 0]]

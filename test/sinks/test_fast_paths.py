@@ -7,10 +7,16 @@ from PIL import Image
 from rclpy.serialization import deserialize_message, serialize_message
 
 from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, paths
+from hair_sim.render import HairRenderer
 from hair_sim.sinks.cdr import same_bytes_but_padding
 from hair_sim.sinks.markers import (build_marker_array, marker_array_cdr, marker_geometry,
                                     MarkerLayout, MAX_POINTS)
 from hair_sim.sinks.mesh_msg import build_hair_mesh, hair_mesh_cdr, hair_state_cdr
+
+
+def render(sim, viewpoint=None):
+    """Return the U-shape mesh of a simulator's state."""
+    return HairRenderer.for_simulator(sim).mesh_of(sim, viewpoint)
 
 
 def moving_sim(style='thesis_long', **params):
@@ -29,7 +35,7 @@ def test_marker_array_fast_path_is_byte_exact():
     sim = moving_sim()
     R, p = sim.head_pose
     for viewpoint in (None, [0.8, 0.0, 0.1]):
-        mesh = sim.mesh(viewpoint=viewpoint)
+        mesh = render(sim, viewpoint)
         layout = MarkerLayout(sim.strips.n_strips, mesh.tris_per_strip,
                               None if viewpoint else mesh)
         geo = marker_geometry(mesh, R, p, layout)
@@ -46,7 +52,7 @@ def test_marker_contents_follow_the_jazzy_rules():
     sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
     sim.step(DEFAULT_DT)
     R, p = sim.head_pose
-    mesh = sim.mesh()
+    mesh = render(sim)
     layout = MarkerLayout(sim.strips.n_strips, mesh.tris_per_strip, mesh)
     geo = marker_geometry(mesh, R, p, layout)
     arr = build_marker_array(geo, mesh.texture_id, mesh.texture_png, 'head', 1, 2)
@@ -63,7 +69,7 @@ def test_marker_contents_follow_the_jazzy_rules():
     head_frame = (mesh.vertices.astype(np.float64) - p) @ R
     np.testing.assert_allclose(pts, head_frame[mesh.indices.reshape(-1)], atol=1e-12)
     # culling keeps every marker's triangle count: culled strips collapse, not vanish
-    culled = sim.mesh(viewpoint=[0.8, 0.0, 0.0])
+    culled = render(sim, [0.8, 0.0, 0.0])
     assert culled.n_strips < mesh.n_strips
     geo2 = marker_geometry(culled, R, p, layout)
     assert [len(g[0]) for g in geo2] == [len(g[0]) for g in geo]
@@ -79,7 +85,7 @@ def test_hair_mesh_and_state_fast_paths_are_byte_exact():
     """The CDR of HairMesh and HairState equals rclpy's serialization of those messages."""
     from hair_sim_msgs.msg import HairMesh, HairState
     sim = moving_sim()
-    mesh = sim.mesh()
+    mesh = render(sim)
     for tex in (True, False):
         fast, pad = hair_mesh_cdr(mesh, mesh.vertices, 'world', 3, 4, tex, with_padding=True)
         slow = build_hair_mesh(mesh, mesh.vertices, 'world', 3, 4, tex)
@@ -107,14 +113,14 @@ def test_marker_encoder_matches_the_slow_path_frame_after_frame():
     from visualization_msgs.msg import MarkerArray
     from hair_sim.sinks.markers import MarkerEncoder
     sim = moving_sim()
-    full = sim.mesh()
+    full = render(sim)
     layout = MarkerLayout(sim.strips.n_strips, full.tris_per_strip, full)
     enc = MarkerEncoder(layout, full.texture_id, full.texture_png,
                         'head')
     for k, viewpoint in enumerate((None, [0.8, 0.0, 0.0], None)):
         sim.step(DEFAULT_DT)
         R, p = sim.head_pose
-        mesh = sim.mesh(viewpoint=viewpoint)
+        mesh = render(sim, viewpoint)
         fast = enc.encode(mesh, R, p, 100 + k, 7)
         slow = build_marker_array(marker_geometry(mesh, R, p, layout), mesh.texture_id,
                                   mesh.texture_png, 'head', 100 + k, 7)

@@ -1,154 +1,92 @@
 """
-Per-step numba kernels of the strand solver (thesis ch. 4 and 5). They write in place.
+Per-segment world forces both strand models share, and the contact geometry (thesis 4-5).
 
-Every segment i of a strand has a zenith theta and an azimuth phi (thesis fig. 4.3) in a
-polar chart of its own: three orthonormal rows (x, y, z) of `chart`, z the polar axis. A
-chart is fixed in the world, so the angles carry inertia when the head turns; the rest
-direction is rotated into the world with the head every step and the hinge spring
-(eq. 3) pulls towards it. Charts are re-centred whenever the segment or its rest
-direction comes within 45 degrees of a pole, with both placed on the new equator. Every
-step re-centres first, so eqs. 1-6 are always evaluated at least 45 degrees from a pole
-(sin(theta) >= 0.707, recorded in stats[3]). Within a step a segment turns at most
-MAX_TURN before the position guard, which may turn it further; whatever angles result,
-the next step re-centres before using them.
+Every kernel here reads the strands' vertices and velocities and writes forces in the
+world frame into `Forces`: `f_dist` (n_strands, n_segments, 3), spread uniformly along a
+segment (its resultant acts at the centre), and `f_end`, acting at the segment's end
+vertex. The Anjyo solver turns them into the moments of eq. 4; the articulated solver
+applies them to its links. Also here: the head's kinematics at the roots and spheres, the
+collision broad phase, the reaction constraint of eqs. 7-10, the springs of eq. 11 and the
+position guard that keeps vertices out of spheres. State goes in as namedtuples of arrays
+(numba passes them like plain arguments); kernels write in place.
 """
 
-from math import acos, atan2, cos, pi, sin, sqrt
+from collections import namedtuple
+from math import sin, sqrt
 
 from numba import njit
 import numpy as np
 
-from hair_sim.vecmath import perpendicular_unit
+from hair_sim.vecmath import nearest_on_spheres, perpendicular_unit
 
-POLE_COS = cos(pi / 4.0)     # re-chart when |cos(theta)| exceeds this (45 deg from a pole)
-MAX_TURN = 0.35              # rad: largest change of theta or phi in one step (guard)
 GUARD_MARGIN = 2e-4          # m: the position guard puts vertices this far outside spheres
 SEGMENT_TOLERANCE = 2e-4     # m: a segment's inner point deeper than this is pushed out
 CONTACT_SKIN = 1e-3          # m: within this of a surface a vertex counts as in contact for
 #                              eq. 7, so hair resting on the head (just outside, where the
 #                              guard leaves it) keeps its inward force removed and settles
-EXPLICIT = 0
-IMPLICIT = 1
-# Weights of x^{n+1}, x^n, x^{n-1} in the implicit hinge spring. (1/4, 1/2, 1/4) would be
-# the trapezoidal rule: no numerical damping, but modes the step cannot resolve (stiff,
-# very short segments) then ring for ever at the Nyquist rate. Leaning on x^{n+1} damps
-# them (|z| -> sqrt(0.3 / 0.4) per step as omega dt -> infinity) while resolved modes keep
-# their period within 1 % up to omega dt ~ 0.35.
-W_NEXT, W_NOW, W_PREV = 0.4, 0.3, 0.3
+GUARD_PASSES = 12            # guard sweeps over the spheres: a vertex pushed out of one sphere
+#                              into a neighbour is pushed again (a crease needs a few)
+START_INSIDE = 1e-4          # m: a segment whose start is this deep in a sphere is left alone
+# Type-2 springs (thesis 5.2) fade in and out along the projected wall of their neighbour:
+# full strength from `along` = 0 to 1 (the top vertex Q down to its projection Q'), ramping
+# to nothing over a quarter of the wall's height beyond either end.
+WALL_TAPER_SLOPE = 4.0
+WALL_TAPER_REACH = 0.25
+
+# Slots of the solvers' `stats` array (what a step measured, for counters and tests)
+MAX_RATE = 0                 # fastest speed of a segment's end about its start (m/s)
+RECHARTS = 1                 # polar charts re-centred (Anjyo model)
+GUARD_MOVES = 2              # segments the position guard turned out of a sphere
+MIN_SIN_THETA = 3            # smallest sin(theta) eqs. 1-6 were evaluated at (Anjyo model)
+TURN_CLAMPS = 4              # steps clamped to MAX_TURN (Anjyo model)
+N_STATS = 5
+
+HeadKinematics = namedtuple('HeadKinematics', ['R', 'p', 'v', 'a', 'w', 'alpha'])
+Strands = namedtuple('Strands', ['pos', 'pos_prev', 'vel', 'length', 'mass'])
+Bodies = namedtuple('Bodies', ['spheres', 'sphere_vel', 'masks'])
+Forces = namedtuple('Forces', ['f_dist', 'f_end'])
+WindField = namedtuple('WindField', ['velocity', 'amplitude', 'mode_dir', 'mode_k', 'mode_w',
+                                     'mode_phase'])
+StripSprings = namedtuple('StripSprings', ['pairs', 'rest1', 'wall_sign', 'rest3', 'proj'])
+SpringConstants = namedtuple('SpringConstants', ['neighbor', 'wall', 'wall_distance',
+                                                 'scalp'])
 
 
 @njit(cache=True)
-def _wrap(a):
-    """Wrap an angle difference into (-pi, pi]."""
-    while a > pi:
-        a -= 2.0 * pi
-    while a <= -pi:
-        a += 2.0 * pi
-    return a
-
-
-@njit(cache=True)
-def _angles(C, dx, dy, dz):
-    """Return (theta, phi) of unit direction d in chart C."""
-    th, ph, _ = _angles_cos(C, dx, dy, dz)
-    return th, ph
-
-
-@njit(cache=True)
-def _angles_cos(C, dx, dy, dz):
-    """Return (theta, phi, cos(theta)) of unit direction d in chart C."""
-    cz = C[2, 0] * dx + C[2, 1] * dy + C[2, 2] * dz
-    cx = C[0, 0] * dx + C[0, 1] * dy + C[0, 2] * dz
-    cy = C[1, 0] * dx + C[1, 1] * dy + C[1, 2] * dz
-    cz = min(1.0, max(-1.0, cz))
-    return acos(cz), atan2(cy, cx), cz
-
-
-@njit(cache=True)
-def _direction(C, th, ph):
-    """Return the unit direction of angles (theta, phi) in chart C."""
-    st = sin(th)
-    ct = cos(th)
-    a = st * cos(ph)
-    b = st * sin(ph)
-    return (a * C[0, 0] + b * C[1, 0] + ct * C[2, 0],
-            a * C[0, 1] + b * C[1, 1] + ct * C[2, 1],
-            a * C[0, 2] + b * C[1, 2] + ct * C[2, 2])
-
-
-@njit(cache=True)
-def _rechart(C, dx, dy, dz, rx, ry, rz):
-    """Re-centre chart C in place so that d and the rest direction r lie on its equator."""
-    zx = dy * rz - dz * ry
-    zy = dz * rx - dx * rz
-    zz = dx * ry - dy * rx
-    n = sqrt(zx * zx + zy * zy + zz * zz)
-    if n < 1e-6:                      # d parallel to r: keep the old polar axis, minimally
-        zx, zy, zz = perpendicular_unit(C[2, 0], C[2, 1], C[2, 2], dx, dy, dz, 1e-6)
-    else:
-        zx /= n
-        zy /= n
-        zz /= n
-    C[0, 0], C[0, 1], C[0, 2] = dx, dy, dz
-    C[2, 0], C[2, 1], C[2, 2] = zx, zy, zz
-    C[1, 0] = zy * dz - zz * dy
-    C[1, 1] = zz * dx - zx * dz
-    C[1, 2] = zx * dy - zy * dx
-
-
-@njit(cache=True)
-def init_charts(directions, chart, theta, phi):
-    """Set each segment's chart so its direction sits at theta = pi/2, phi = 0."""
-    n_s, n_seg = theta.shape
-    for s in range(n_s):
-        for i in range(n_seg):
-            dx, dy, dz = directions[s, i, 0], directions[s, i, 1], directions[s, i, 2]
-            C = chart[s, i]
-            C[2, 0], C[2, 1], C[2, 2] = 0.0, 0.0, 1.0
-            _rechart(C, dx, dy, dz, dx, dy, dz)
-            theta[s, i], phi[s, i] = _angles(C, dx, dy, dz)
-
-
-@njit(cache=True)
-def rotate_charts(chart, R):
-    """Rotate every chart by R (a teleport: the hair turns rigidly with the head)."""
-    n_s, n_seg = chart.shape[0], chart.shape[1]
-    for s in range(n_s):
-        for i in range(n_seg):
-            for r in range(3):
-                x, y, z = chart[s, i, r, 0], chart[s, i, r, 1], chart[s, i, r, 2]
-                chart[s, i, r, 0] = R[0, 0] * x + R[0, 1] * y + R[0, 2] * z
-                chart[s, i, r, 1] = R[1, 0] * x + R[1, 1] * y + R[1, 2] * z
-                chart[s, i, r, 2] = R[2, 0] * x + R[2, 1] * y + R[2, 2] * z
-
-
-@njit(cache=True)
-def _rotate(R, x, y, z):
+def rotate(R, x, y, z):
     """Return R (x, y, z)."""
     return (R[0, 0] * x + R[0, 1] * y + R[0, 2] * z, R[1, 0] * x + R[1, 1] * y + R[1, 2] * z,
             R[2, 0] * x + R[2, 1] * y + R[2, 2] * z)
 
 
 @njit(cache=True)
-def root_kinematics(root_head, spheres_head, R, p, v, a, w, alpha, roots, root_acc, spheres,
-                    sphere_vel):
+def root_kinematics(head,
+                    root_head,
+                    spheres_head,
+                    roots,
+                    root_vel,
+                    root_acc,
+                    bodies):
     """
-    Place roots and spheres with the head and give their accelerations and velocities.
+    Place roots and spheres with the head and give their velocities and accelerations.
 
     A point at r from the head origin moves with v + w x r and accelerates with
     a + alpha x r + w x (w x r) (the inertial force of thesis eq. 5 uses the roots').
     """
+    R, p, v, a, w, alpha = head.R, head.p, head.v, head.a, head.w, head.alpha
+    spheres, sphere_vel = bodies.spheres, bodies.sphere_vel
     for s in range(root_head.shape[0]):
-        rx, ry, rz = _rotate(R, root_head[s, 0], root_head[s, 1], root_head[s, 2])
+        rx, ry, rz = rotate(R, root_head[s, 0], root_head[s, 1], root_head[s, 2])
         roots[s, 0], roots[s, 1], roots[s, 2] = rx + p[0], ry + p[1], rz + p[2]
         cx = w[1] * rz - w[2] * ry
         cy = w[2] * rx - w[0] * rz
         cz = w[0] * ry - w[1] * rx
+        root_vel[s, 0], root_vel[s, 1], root_vel[s, 2] = v[0] + cx, v[1] + cy, v[2] + cz
         root_acc[s, 0] = a[0] + alpha[1] * rz - alpha[2] * ry + w[1] * cz - w[2] * cy
         root_acc[s, 1] = a[1] + alpha[2] * rx - alpha[0] * rz + w[2] * cx - w[0] * cz
         root_acc[s, 2] = a[2] + alpha[0] * ry - alpha[1] * rx + w[0] * cy - w[1] * cx
     for k in range(spheres_head.shape[0]):
-        rx, ry, rz = _rotate(R, spheres_head[k, 0], spheres_head[k, 1], spheres_head[k, 2])
+        rx, ry, rz = rotate(R, spheres_head[k, 0], spheres_head[k, 1], spheres_head[k, 2])
         spheres[k, 0], spheres[k, 1], spheres[k, 2] = rx + p[0], ry + p[1], rz + p[2]
         spheres[k, 3] = spheres_head[k, 3]
         sphere_vel[k, 0] = v[0] + w[1] * rz - w[2] * ry
@@ -177,10 +115,13 @@ def strand_sphere_masks(root, reach, spheres, masks):
 
 
 @njit(cache=True)
-def _wind_at(x, y, z, t, base, amp, mdir, mk, mw, mph):
+def _wind_at(x, y, z, t, wind):
     """Return the wind velocity at a point: mean plus the seeded turbulence modes."""
+    base = wind.velocity
     wx, wy, wz = base[0], base[1], base[2]
+    amp = wind.amplitude
     if amp > 0.0:
+        mdir, mk, mw, mph = wind.mode_dir, wind.mode_k, wind.mode_w, wind.mode_phase
         for m in range(mdir.shape[0]):
             s = amp * sin(mk[m, 0] * x + mk[m, 1] * y + mk[m, 2] * z - mw[m] * t + mph[m])
             wx += s * mdir[m, 0]
@@ -190,50 +131,65 @@ def _wind_at(x, y, z, t, base, amp, mdir, mk, mw, mph):
 
 
 @njit(cache=True)
-def external_forces(pos, pos_prev, h_prev, mass, length, root_acc, gravity, wind_on,
-                    wind_base, wind_amp, mdir, mk, mw, mph, t, drag_factor, f_dist, f_end):
+def external_forces(strands,
+                    root_acc,
+                    gravity,
+                    wind,
+                    wind_on,
+                    t,
+                    drag_factor,
+                    air_damping,
+                    root_inertia,
+                    forces):
     """
     Set the distributed force of every segment (eq. 5) and clear the end forces.
 
-    F = rho d (g + a) + d f: gravity, the inertial force of the root's acceleration and the
-    wind drag 0.5 rho_air Cd width l |v_perp| v_perp on the segment's relative velocity.
-    The gusts' wavelengths (0.5 - 3 m) are longer than a strand, so the turbulence is
-    evaluated once per strand, at its middle vertex.
+    F = rho d (g + a) + d f: gravity; with root_inertia, the inertial force -m a of the
+    root's acceleration (a model that moves each segment about a root taken as fixed needs
+    it; an articulated chain gets the base motion from its dynamics and does not); the
+    wind drag 0.5 rho_air Cd width l |v_perp| v_perp on the segment's velocity relative to
+    the wind; and air damping -nu m v at the segment's centre, relative to still air. The
+    gusts' wavelengths (0.5 - 3 m) are longer than a strand, so the turbulence is evaluated
+    once per strand, at its middle vertex.
     """
+    pos, vel, length, mass = strands.pos, strands.vel, strands.length, strands.mass
+    f_dist, f_end = forces.f_dist, forces.f_end
     n_s, n_seg = mass.shape
-    inv_h = 1.0 / h_prev
     mid_v = (n_seg + 1) // 2
     for s in range(n_s):
-        ax = gravity[0] - root_acc[s, 0]
-        ay = gravity[1] - root_acc[s, 1]
-        az = gravity[2] - root_acc[s, 2]
+        ax, ay, az = gravity[0], gravity[1], gravity[2]
+        if root_inertia:
+            ax -= root_acc[s, 0]
+            ay -= root_acc[s, 1]
+            az -= root_acc[s, 2]
         wx = wy = wz = 0.0
         if wind_on:
-            wx, wy, wz = _wind_at(pos[s, mid_v, 0], pos[s, mid_v, 1], pos[s, mid_v, 2], t,
-                                  wind_base, wind_amp, mdir, mk, mw, mph)
+            wx, wy, wz = _wind_at(pos[s, mid_v, 0], pos[s, mid_v, 1], pos[s, mid_v, 2], t, wind)
         for i in range(n_seg):
             m = mass[s, i]
             fx, fy, fz = m * ax, m * ay, m * az
-            if wind_on:
-                seg_len = length[s, i]
-                vx = 0.5 * (pos[s, i, 0] + pos[s, i + 1, 0]
-                            - pos_prev[s, i, 0] - pos_prev[s, i + 1, 0]) * inv_h
-                vy = 0.5 * (pos[s, i, 1] + pos[s, i + 1, 1]
-                            - pos_prev[s, i, 1] - pos_prev[s, i + 1, 1]) * inv_h
-                vz = 0.5 * (pos[s, i, 2] + pos[s, i + 1, 2]
-                            - pos_prev[s, i, 2] - pos_prev[s, i + 1, 2]) * inv_h
-                rx, ry, rz = wx - vx, wy - vy, wz - vz
-                dx = (pos[s, i + 1, 0] - pos[s, i, 0]) / seg_len
-                dy = (pos[s, i + 1, 1] - pos[s, i, 1]) / seg_len
-                dz = (pos[s, i + 1, 2] - pos[s, i, 2]) / seg_len
-                dot = rx * dx + ry * dy + rz * dz
-                rx -= dot * dx
-                ry -= dot * dy
-                rz -= dot * dz
-                q = drag_factor * seg_len * sqrt(rx * rx + ry * ry + rz * rz)
-                fx += q * rx
-                fy += q * ry
-                fz += q * rz
+            if wind_on or air_damping > 0.0:
+                vx = 0.5 * (vel[s, i, 0] + vel[s, i + 1, 0])
+                vy = 0.5 * (vel[s, i, 1] + vel[s, i + 1, 1])
+                vz = 0.5 * (vel[s, i, 2] + vel[s, i + 1, 2])
+                if air_damping > 0.0:
+                    fx -= air_damping * m * vx
+                    fy -= air_damping * m * vy
+                    fz -= air_damping * m * vz
+                if wind_on:
+                    seg_len = length[s, i]
+                    rx, ry, rz = wx - vx, wy - vy, wz - vz
+                    dx = (pos[s, i + 1, 0] - pos[s, i, 0]) / seg_len
+                    dy = (pos[s, i + 1, 1] - pos[s, i, 1]) / seg_len
+                    dz = (pos[s, i + 1, 2] - pos[s, i, 2]) / seg_len
+                    dot = rx * dx + ry * dy + rz * dz
+                    rx -= dot * dx
+                    ry -= dot * dy
+                    rz -= dot * dz
+                    q = drag_factor * seg_len * sqrt(rx * rx + ry * ry + rz * rz)
+                    fx += q * rx
+                    fy += q * ry
+                    fz += q * rz
             f_dist[s, i, 0] = fx
             f_dist[s, i, 1] = fy
             f_dist[s, i, 2] = fz
@@ -264,8 +220,11 @@ def _contact_weight(d, r):
 
 
 @njit(cache=True)
-def reaction_constraint_forces(pos, pos_prev, h_prev, length, spheres, sphere_vel, masks,
-                               k_per_m, c_per_m, f_dist, f_end):
+def reaction_constraint_forces(strands,
+                               bodies,
+                               k_per_m,
+                               c_per_m,
+                               forces):
     """
     Collision response by reaction constraints (eqs. 7-10) for vertices and segments.
 
@@ -280,8 +239,10 @@ def reaction_constraint_forces(pos, pos_prev, h_prev, length, spheres, sphere_ve
     touches the sphere (a root on the scalp) is left to that vertex's own test. Returns
     the contacts found.
     """
+    pos, vel, length = strands.pos, strands.vel, strands.length
+    spheres, sphere_vel, masks = bodies.spheres, bodies.sphere_vel, bodies.masks
+    f_dist, f_end = forces.f_dist, forces.f_end
     n_s, n_seg = f_dist.shape[0], f_dist.shape[1]
-    inv_h = 1.0 / h_prev
     contacts = 0
     for s in range(n_s):
         mask = masks[s]
@@ -303,9 +264,9 @@ def reaction_constraint_forces(pos, pos_prev, h_prev, length, spheres, sphere_ve
                 d = sqrt(d2)
                 if d < r + CONTACT_SKIN and d > 1e-12:
                     nx, ny, nz = ex / d, ey / d, ez / d
-                    vx = (px - pos_prev[s, i + 1, 0]) * inv_h - sphere_vel[kk, 0]
-                    vy = (py - pos_prev[s, i + 1, 1]) * inv_h - sphere_vel[kk, 1]
-                    vz = (pz - pos_prev[s, i + 1, 2]) * inv_h - sphere_vel[kk, 2]
+                    vx = vel[s, i + 1, 0] - sphere_vel[kk, 0]
+                    vy = vel[s, i + 1, 1] - sphere_vel[kk, 1]
+                    vz = vel[s, i + 1, 2] - sphere_vel[kk, 2]
                     w = _contact_weight(d, r)
                     _remove_inward(f_dist[s, i], nx, ny, nz, w)
                     _remove_inward(f_end[s, i], nx, ny, nz, w)
@@ -335,12 +296,9 @@ def reaction_constraint_forces(pos, pos_prev, h_prev, length, spheres, sphere_ve
                     f1 = f_dist[s, i, a] + f_end[s, i, a]
                     f0 = 0.0 if i == 0 else f_dist[s, i - 1, a] + f_end[s, i - 1, a]
                     fin[a] = (1.0 - tt) * f0 + tt * f1
-                vx = ((1 - tt) * (ax - pos_prev[s, i, 0]) + tt * (px - pos_prev[s, i + 1, 0])) \
-                    * inv_h - sphere_vel[kk, 0]
-                vy = ((1 - tt) * (ay - pos_prev[s, i, 1]) + tt * (py - pos_prev[s, i + 1, 1])) \
-                    * inv_h - sphere_vel[kk, 1]
-                vz = ((1 - tt) * (az - pos_prev[s, i, 2]) + tt * (pz - pos_prev[s, i + 1, 2])) \
-                    * inv_h - sphere_vel[kk, 2]
+                vx = (1 - tt) * vel[s, i, 0] + tt * vel[s, i + 1, 0] - sphere_vel[kk, 0]
+                vy = (1 - tt) * vel[s, i, 1] + tt * vel[s, i + 1, 1] - sphere_vel[kk, 1]
+                vz = (1 - tt) * vel[s, i, 2] + tt * vel[s, i + 1, 2] - sphere_vel[kk, 2]
                 fn = fin[0] * nx + fin[1] * ny + fin[2] * nz
                 w = _contact_weight(dq, r)
                 mag = -w * min(fn, 0.0) + k * max(r - dq, 0.0) - w * c * (
@@ -350,23 +308,6 @@ def reaction_constraint_forces(pos, pos_prev, h_prev, length, spheres, sphere_ve
                 f_end[s, i, 2] += tt * mag * nz
                 contacts += 1
     return contacts
-
-
-@njit(cache=True)
-def _scalp_projection(x, y, z, scalp):
-    """Return the radial projection of a point onto its nearest scalp sphere."""
-    best = 1e30
-    bk = 0
-    for k in range(scalp.shape[0]):
-        dx, dy, dz = x - scalp[k, 0], y - scalp[k, 1], z - scalp[k, 2]
-        d = sqrt(dx * dx + dy * dy + dz * dz) - scalp[k, 3]
-        if d < best:
-            best = d
-            bk = k
-    dx, dy, dz = x - scalp[bk, 0], y - scalp[bk, 1], z - scalp[bk, 2]
-    d = max(sqrt(dx * dx + dy * dy + dz * dz), 1e-12)
-    f = scalp[bk, 3] / d
-    return scalp[bk, 0] + f * dx, scalp[bk, 1] + f * dy, scalp[bk, 2] + f * dz
 
 
 @njit(cache=True)
@@ -402,13 +343,16 @@ def wall_signed_distance(pos, scalp, a, b, j):
     plane through Q spanned by b's tangent and QQ'. Returns (distance, nx, ny, nz, along)
     with the unit normal and the position of a's vertex along QQ' (0 at Q, 1 at Q').
     """
-    px, py, pz = _scalp_projection(pos[b, j, 0], pos[b, j, 1], pos[b, j, 2], scalp)
+    px, py, pz = nearest_on_spheres(pos[b, j, 0], pos[b, j, 1], pos[b, j, 2], scalp)
     return _wall_sd(pos, px, py, pz, a, b, j)
 
 
 @njit(cache=True)
-def strip_springs(pos, length, scalp, pairs, rest1, k1, wall_sign, k2, d2, rest3, k3, f_end,
-                  proj):
+def strip_springs(strands,
+                  scalp,
+                  springs,
+                  constants,
+                  forces):
     """
     Springs of thesis 5.2, eq. 11 (F = -k x), added to the end forces of the segments.
 
@@ -419,11 +363,16 @@ def strip_springs(pos, length, scalp, pairs, rest1, k1, wall_sign, k2, d2, rest3
     Returns the number of type-2 springs inserted. proj is scratch space (n_strands,
     n_vertices, 3) for every vertex's scalp projection, computed once and shared.
     """
+    pos, length = strands.pos, strands.length
+    pairs, rest1, wall_sign = springs.pairs, springs.rest1, springs.wall_sign
+    rest3, proj = springs.rest3, springs.proj
+    k1, k2, d2, k3 = constants.neighbor, constants.wall, constants.wall_distance, constants.scalp
+    f_end = forces.f_end
     n_v = pos.shape[1]
     inserted = 0
     for s in range(pos.shape[0]):
         for j in range(1, n_v):
-            px, py, pz = _scalp_projection(pos[s, j, 0], pos[s, j, 1], pos[s, j, 2], scalp)
+            px, py, pz = nearest_on_spheres(pos[s, j, 0], pos[s, j, 1], pos[s, j, 2], scalp)
             proj[s, j, 0], proj[s, j, 1], proj[s, j, 2] = px, py, pz
     for q in range(pairs.shape[0]):
         a, b = pairs[q, 0], pairs[q, 1]
@@ -447,8 +396,9 @@ def strip_springs(pos, length, scalp, pairs, rest1, k1, wall_sign, k2, d2, rest3
                     sd, nx, ny, nz, along = _wall_sd(pos, proj[other, j, 0], proj[other, j, 1],
                                                      proj[other, j, 2], me, other, j)
                     sd *= wall_sign[q, j, side]
-                    taper = min(1.0, max(0.0, 4.0 * (along + 0.25)),
-                                max(0.0, 4.0 * (1.25 - along)))
+                    taper = min(1.0,
+                                max(0.0, WALL_TAPER_SLOPE * (along + WALL_TAPER_REACH)),
+                                max(0.0, WALL_TAPER_SLOPE * (1.0 + WALL_TAPER_REACH - along)))
                     if sd < d2 and taper > 0.0:
                         f = taper * k2 * length[me, j - 1] * (d2 - sd) * wall_sign[q, j, side]
                         f_end[me, j - 1, 0] += f * nx
@@ -478,7 +428,7 @@ def strip_springs(pos, length, scalp, pairs, rest1, k1, wall_sign, k2, d2, rest3
 
 
 @njit(cache=True)
-def _guard(px, py, pz, ex, ey, ez, seg_len, spheres, mask):
+def guard_segment(px, py, pz, ex, ey, ez, seg_len, spheres, mask):
     """
     Position guard: turn the segment p->e (length l) so no vertex ends inside a sphere.
 
@@ -489,7 +439,7 @@ def _guard(px, py, pz, ex, ey, ez, seg_len, spheres, mask):
     Returns the new end point and whether anything moved.
     """
     moved = False
-    for _ in range(12):
+    for _ in range(GUARD_PASSES):
         changed = False
         for kk in range(spheres.shape[0]):
             if not (mask >> np.int64(kk)) & np.int64(1):
@@ -500,7 +450,7 @@ def _guard(px, py, pz, ex, ey, ez, seg_len, spheres, mask):
             if d2 > (r + seg_len) * (r + seg_len):
                 continue            # the end is so far out that no point of the segment is in
             sx, sy, sz = px - cx, py - cy, pz - cz
-            if sx * sx + sy * sy + sz * sz < (r - 1e-4) * (r - 1e-4):
+            if sx * sx + sy * sy + sz * sz < (r - START_INSIDE) * (r - START_INSIDE):
                 continue
             d = sqrt(d2)
             tx, ty, tz = 0.0, 0.0, 0.0
@@ -557,135 +507,6 @@ def _guard(px, py, pz, ex, ey, ez, seg_len, spheres, mask):
 
 
 @njit(cache=True)
-def integrate_strands(theta, phi, theta_prev, phi_prev, chart, rest_dir, length, inv_inertia,
-                      k_hinge, damping, f_dist, f_end, R, roots, spheres, masks, collide,
-                      pos, pos_prev, h, integrator, stats):
-    """
-    Advance every segment by eq. 1, from root to tip, and place the vertices.
-
-    explicit: eq. 6 as the thesis writes it (with M/I): th+ = 2th - th- - gamma dt (th -
-    th-) + dt^2 M/I. implicit: the hinge spring (eq. 3) is taken at the weighted mean
-    W_NEXT x+ + W_NOW x + W_PREV x- and the damping centred, (x+ - x-) / 2dt, both
-    implicitly; the external moment (eq. 4) explicitly. Unconditionally stable for the
-    spring; unresolved stiff modes are damped.
-    stats gets [max speed of a segment's end about its start (m/s), re-charts, guard moves,
-    min sin(theta), turn clamps].
-    """
-    n_s, n_seg = theta.shape
-    max_rate = 0.0
-    recharts = 0
-    guards = 0
-    clamps = 0
-    min_sin = 1.0
-    h2 = h * h
-    for s in range(n_s):
-        for j in range(n_seg + 1):
-            pos_prev[s, j, 0] = pos[s, j, 0]
-            pos_prev[s, j, 1] = pos[s, j, 1]
-            pos_prev[s, j, 2] = pos[s, j, 2]
-        px, py, pz = roots[s, 0], roots[s, 1], roots[s, 2]
-        pos[s, 0, 0], pos[s, 0, 1], pos[s, 0, 2] = px, py, pz
-        mask = masks[s] if collide else np.int64(0)
-        for i in range(n_seg):
-            C = chart[s, i]
-            rx, ry, rz = _rotate(R, rest_dir[s, i, 0], rest_dir[s, i, 1], rest_dir[s, i, 2])
-            th, ph = theta[s, i], phi[s, i]
-            thp, php = theta_prev[s, i], phi_prev[s, i]
-            th0, ph0, ct0 = _angles_cos(C, rx, ry, rz)
-            ct = cos(th)
-            if abs(ct) > POLE_COS or abs(ct0) > POLE_COS:
-                dx, dy, dz = _direction(C, th, ph)
-                qx, qy, qz = _direction(C, thp, php)
-                _rechart(C, dx, dy, dz, rx, ry, rz)
-                th, ph = _angles(C, dx, dy, dz)
-                thp, php = _angles(C, qx, qy, qz)
-                th0, ph0 = _angles(C, rx, ry, rz)
-                recharts += 1
-                ct = cos(th)
-            st = sin(th)
-            sp, cp = sin(ph), cos(ph)
-            if st < min_sin:
-                min_sin = st
-            # unit vectors along increasing theta and phi (fig. 4.3)
-            etx = ct * cp * C[0, 0] + ct * sp * C[1, 0] - st * C[2, 0]
-            ety = ct * cp * C[0, 1] + ct * sp * C[1, 1] - st * C[2, 1]
-            etz = ct * cp * C[0, 2] + ct * sp * C[1, 2] - st * C[2, 2]
-            epx = -sp * C[0, 0] + cp * C[1, 0]
-            epy = -sp * C[0, 1] + cp * C[1, 1]
-            epz = -sp * C[0, 2] + cp * C[1, 2]
-            seg_len = length[s, i]
-            # eq. 4: M_theta = u F_theta, M_phi = v F_phi with u = l/2, v = (l/2) sin(theta)
-            # for the distributed force; forces at the segment's end act with lever l.
-            fdt = f_dist[s, i, 0] * etx + f_dist[s, i, 1] * ety + f_dist[s, i, 2] * etz
-            fdp = f_dist[s, i, 0] * epx + f_dist[s, i, 1] * epy + f_dist[s, i, 2] * epz
-            fet = f_end[s, i, 0] * etx + f_end[s, i, 1] * ety + f_end[s, i, 2] * etz
-            fep = f_end[s, i, 0] * epx + f_end[s, i, 1] * epy + f_end[s, i, 2] * epz
-            m_th = 0.5 * seg_len * fdt + seg_len * fet
-            m_ph = (0.5 * seg_len * fdp + seg_len * fep) * st
-            k = k_hinge[s, i]
-            ii = inv_inertia[s, i]
-            x_th = th - th0                 # deviations from the rest angles (eq. 3)
-            x_thp = thp - th0
-            x_ph = _wrap(ph - ph0)
-            x_php = x_ph - _wrap(ph - php)
-            if integrator == EXPLICIT:
-                # eq. 6
-                n_th = 2 * x_th - x_thp - damping * h * (x_th - x_thp) + h2 * ii * (
-                    -k * x_th + m_th)
-                n_ph = 2 * x_ph - x_php - damping * h * (x_ph - x_php) + h2 * ii * (
-                    -k * x_ph + m_ph)
-            else:
-                a = k * h2 * ii
-                b = 0.5 * damping * h
-                den = 1.0 + a * W_NEXT + b
-                n_th = (2 * x_th - x_thp - a * (W_NOW * x_th + W_PREV * x_thp) + b * x_thp
-                        + h2 * ii * m_th) / den
-                n_ph = (2 * x_ph - x_php - a * (W_NOW * x_ph + W_PREV * x_php) + b * x_php
-                        + h2 * ii * m_ph) / den
-            d_th = n_th - x_th
-            d_ph = n_ph - x_ph
-            if abs(d_th) > MAX_TURN or abs(d_ph) > MAX_TURN:   # guard: counted, not hidden
-                d_th = min(MAX_TURN, max(-MAX_TURN, d_th))
-                d_ph = min(MAX_TURN, max(-MAX_TURN, d_ph))
-                clamps += 1
-            new_th = th + d_th
-            new_ph = ph + d_ph
-            dx, dy, dz = _direction(C, new_th, new_ph)
-            ex, ey, ez = px + seg_len * dx, py + seg_len * dy, pz + seg_len * dz
-            moved = False
-            if mask != 0:
-                ex, ey, ez, moved = _guard(px, py, pz, ex, ey, ez, seg_len, spheres,
-                                           mask)
-            if moved:
-                # contact: the segment is turned out of the sphere and stopped there
-                inv = 1.0 / seg_len
-                new_th, new_ph = _angles(C, (ex - px) * inv, (ey - py) * inv, (ez - pz) * inv)
-                theta_prev[s, i] = new_th
-                phi_prev[s, i] = new_ph
-                guards += 1
-            else:
-                theta_prev[s, i] = th
-                phi_prev[s, i] = new_ph - d_ph
-            wrapped = _wrap(new_ph)
-            phi_prev[s, i] += wrapped - new_ph
-            theta[s, i] = new_th
-            phi[s, i] = wrapped
-            sn = sin(new_th)
-            turn = max(abs(new_th - theta_prev[s, i]), abs(wrapped - phi_prev[s, i]) * sn)
-            rate = turn * seg_len / h
-            if rate > max_rate:
-                max_rate = rate
-            pos[s, i + 1, 0], pos[s, i + 1, 1], pos[s, i + 1, 2] = ex, ey, ez
-            px, py, pz = ex, ey, ez
-    stats[0] = max_rate
-    stats[1] += recharts
-    stats[2] += guards
-    stats[3] = min(stats[3], min_sin)
-    stats[4] += clamps
-    return n_s * n_seg
-
-
-@njit(cache=True)
 def guard_rest_shape(rest, spheres):
     """
     Make a rest shape (head frame) consistent with the position guard, in place.
@@ -702,8 +523,8 @@ def guard_rest_shape(rest, spheres):
             px, py, pz = rest[s, j, 0], rest[s, j, 1], rest[s, j, 2]
             dx, dy, dz = rest[s, j + 1, 0] - px, rest[s, j + 1, 1] - py, rest[s, j + 1, 2] - pz
             seg_len = sqrt(dx * dx + dy * dy + dz * dz)
-            ex, ey, ez, m = _guard(px, py, pz, rest[s, j + 1, 0], rest[s, j + 1, 1],
-                                   rest[s, j + 1, 2], seg_len, spheres, all_spheres)
+            ex, ey, ez, m = guard_segment(px, py, pz, rest[s, j + 1, 0], rest[s, j + 1, 1],
+                                          rest[s, j + 1, 2], seg_len, spheres, all_spheres)
             if m:
                 # carry the rest of the strand along rigidly so other segments keep theirs
                 ox, oy, oz = ex - rest[s, j + 1, 0], ey - rest[s, j + 1, 1], ez - rest[s, j + 1, 2]

@@ -1,0 +1,433 @@
+"""
+The thesis model: Anjyo's one-dimensional angular moments (thesis ch. 4, eqs. 1-6).
+
+Every segment i of a strand has a zenith theta and an azimuth phi (thesis fig. 4.3) in a
+polar chart of its own: three orthonormal rows (x, y, z) of `chart`, z the polar axis. A
+chart is fixed in the world, so the angles carry inertia when the head turns; the rest
+direction is rotated into the world with the head every step and the hinge spring
+(eq. 3) pulls towards it. Charts are re-centred whenever the segment or its rest
+direction comes within 45 degrees of a pole, with both placed on the new equator. Every
+step re-centres first, so eqs. 1-6 are always evaluated at least 45 degrees from a pole
+(sin(theta) >= 0.707, recorded in stats[MIN_SIN_THETA]). Within a step a segment turns at
+most MAX_TURN before the position guard, which may turn it further; whatever angles
+result, the next step re-centres before using them.
+
+Each segment swings about its start as if that were fixed (the root's acceleration enters
+as an inertial force), with its own inertia only: cheap, and it holds a style, but it is
+not the mechanics of a chain (see solvers/articulated.py).
+"""
+
+from collections import namedtuple
+from math import acos, atan2, cos, pi, sin, sqrt
+
+from numba import njit
+import numpy as np
+
+from hair_sim.physics.forces import (GUARD_MOVES, guard_segment, MAX_RATE, MIN_SIN_THETA,
+                                     RECHARTS, rotate, TURN_CLAMPS)
+from hair_sim.vecmath import perpendicular_unit
+
+POLE_COS = cos(pi / 4.0)     # re-chart when |cos(theta)| exceeds this (45 deg from a pole)
+MAX_TURN = 0.35              # rad: largest change of theta or phi in one step (guard)
+EXPLICIT = 0
+IMPLICIT = 1
+# Weights of x^{n+1}, x^n, x^{n-1} in the implicit hinge spring. (1/4, 1/2, 1/4) would be
+# the trapezoidal rule: no numerical damping, but modes the step cannot resolve (stiff,
+# very short segments) then ring for ever at the Nyquist rate. Leaning on x^{n+1} damps
+# them (|z| -> sqrt(0.3 / 0.4) per step as omega dt -> infinity) while resolved modes keep
+# their period within 1 % up to omega dt ~ 0.35.
+W_NEXT, W_NOW, W_PREV = 0.4, 0.3, 0.3
+
+AnjyoState = namedtuple('AnjyoState', ['theta', 'phi', 'theta_prev', 'phi_prev', 'chart',
+                                       'rest_dir', 'inv_inertia', 'k_hinge'])
+
+
+@njit(cache=True)
+def _wrap(a):
+    """Wrap an angle difference into (-pi, pi]."""
+    while a > pi:
+        a -= 2.0 * pi
+    while a <= -pi:
+        a += 2.0 * pi
+    return a
+
+
+@njit(cache=True)
+def _angles(C, dx, dy, dz):
+    """Return (theta, phi) of unit direction d in chart C."""
+    th, ph, _ = _angles_cos(C, dx, dy, dz)
+    return th, ph
+
+
+@njit(cache=True)
+def _angles_cos(C, dx, dy, dz):
+    """Return (theta, phi, cos(theta)) of unit direction d in chart C."""
+    cz = C[2, 0] * dx + C[2, 1] * dy + C[2, 2] * dz
+    cx = C[0, 0] * dx + C[0, 1] * dy + C[0, 2] * dz
+    cy = C[1, 0] * dx + C[1, 1] * dy + C[1, 2] * dz
+    cz = min(1.0, max(-1.0, cz))
+    return acos(cz), atan2(cy, cx), cz
+
+
+@njit(cache=True)
+def _direction(C, th, ph):
+    """Return the unit direction of angles (theta, phi) in chart C."""
+    st = sin(th)
+    ct = cos(th)
+    a = st * cos(ph)
+    b = st * sin(ph)
+    return (a * C[0, 0] + b * C[1, 0] + ct * C[2, 0],
+            a * C[0, 1] + b * C[1, 1] + ct * C[2, 1],
+            a * C[0, 2] + b * C[1, 2] + ct * C[2, 2])
+
+
+@njit(cache=True)
+def _rechart(C, dx, dy, dz, rx, ry, rz):
+    """Re-centre chart C in place so that d and the rest direction r lie on its equator."""
+    zx = dy * rz - dz * ry
+    zy = dz * rx - dx * rz
+    zz = dx * ry - dy * rx
+    n = sqrt(zx * zx + zy * zy + zz * zz)
+    if n < 1e-6:                      # d parallel to r: keep the old polar axis, minimally
+        zx, zy, zz = perpendicular_unit(C[2, 0], C[2, 1], C[2, 2], dx, dy, dz, 1e-6)
+    else:
+        zx /= n
+        zy /= n
+        zz /= n
+    C[0, 0], C[0, 1], C[0, 2] = dx, dy, dz
+    C[2, 0], C[2, 1], C[2, 2] = zx, zy, zz
+    C[1, 0] = zy * dz - zz * dy
+    C[1, 1] = zz * dx - zx * dz
+    C[1, 2] = zx * dy - zy * dx
+
+
+@njit(cache=True)
+def init_charts(directions, chart, theta, phi):
+    """Set each segment's chart so its direction sits at theta = pi/2, phi = 0."""
+    n_s, n_seg = theta.shape
+    for s in range(n_s):
+        for i in range(n_seg):
+            dx, dy, dz = directions[s, i, 0], directions[s, i, 1], directions[s, i, 2]
+            C = chart[s, i]
+            C[2, 0], C[2, 1], C[2, 2] = 0.0, 0.0, 1.0
+            _rechart(C, dx, dy, dz, dx, dy, dz)
+            theta[s, i], phi[s, i] = _angles(C, dx, dy, dz)
+
+
+@njit(cache=True)
+def rotate_charts(chart, R):
+    """Rotate every chart by R (a teleport: the hair turns rigidly with the head)."""
+    n_s, n_seg = chart.shape[0], chart.shape[1]
+    for s in range(n_s):
+        for i in range(n_seg):
+            for r in range(3):
+                x, y, z = chart[s, i, r, 0], chart[s, i, r, 1], chart[s, i, r, 2]
+                chart[s, i, r, 0] = R[0, 0] * x + R[0, 1] * y + R[0, 2] * z
+                chart[s, i, r, 1] = R[1, 0] * x + R[1, 1] * y + R[1, 2] * z
+                chart[s, i, r, 2] = R[2, 0] * x + R[2, 1] * y + R[2, 2] * z
+
+
+@njit(cache=True)
+def _recentre(C, th, ph, thp, php, rx, ry, rz):
+    """
+    Re-centre chart C when the segment or its rest direction r nears a pole.
+
+    Returns (theta, phi, previous theta, previous phi, rest theta, rest phi, recharted).
+    """
+    th0, ph0, ct0 = _angles_cos(C, rx, ry, rz)
+    if abs(cos(th)) > POLE_COS or abs(ct0) > POLE_COS:
+        dx, dy, dz = _direction(C, th, ph)
+        qx, qy, qz = _direction(C, thp, php)
+        _rechart(C, dx, dy, dz, rx, ry, rz)
+        th, ph = _angles(C, dx, dy, dz)
+        thp, php = _angles(C, qx, qy, qz)
+        th0, ph0 = _angles(C, rx, ry, rz)
+        return th, ph, thp, php, th0, ph0, True
+    return th, ph, thp, php, th0, ph0, False
+
+
+@njit(cache=True)
+def _moments(C, th, ph, seg_len, fd, fe):
+    """
+    Eq. 4: the moments of the distributed force fd and the end force fe about the start.
+
+    M_theta = u F_theta, M_phi = v F_phi with u = l/2, v = (l/2) sin(theta) for the
+    distributed force; forces at the segment's end act with lever l.
+    """
+    st, ct = sin(th), cos(th)
+    sp, cp = sin(ph), cos(ph)
+    # unit vectors along increasing theta and phi (fig. 4.3)
+    etx = ct * cp * C[0, 0] + ct * sp * C[1, 0] - st * C[2, 0]
+    ety = ct * cp * C[0, 1] + ct * sp * C[1, 1] - st * C[2, 1]
+    etz = ct * cp * C[0, 2] + ct * sp * C[1, 2] - st * C[2, 2]
+    epx = -sp * C[0, 0] + cp * C[1, 0]
+    epy = -sp * C[0, 1] + cp * C[1, 1]
+    epz = -sp * C[0, 2] + cp * C[1, 2]
+    fdt = fd[0] * etx + fd[1] * ety + fd[2] * etz
+    fdp = fd[0] * epx + fd[1] * epy + fd[2] * epz
+    fet = fe[0] * etx + fe[1] * ety + fe[2] * etz
+    fep = fe[0] * epx + fe[1] * epy + fe[2] * epz
+    return 0.5 * seg_len * fdt + seg_len * fet, (0.5 * seg_len * fdp + seg_len * fep) * st
+
+
+@njit(cache=True)
+def _next_deviation(x, xp, moment, k, inv_i, damping, h, integrator):
+    """
+    Return the next deviation x+ from the rest angle (eq. 3) of one angle.
+
+    explicit: eq. 6 as the thesis writes it (with M/I): x+ = 2x - x- - gamma h (x - x-)
+    + h^2 (-k x + M) / I. implicit: the hinge spring at the weighted mean W_NEXT x+ +
+    W_NOW x + W_PREV x- and the damping centred, (x+ - x-) / 2h, both implicitly; the
+    external moment explicitly. Unconditionally stable for the spring.
+    """
+    h2 = h * h
+    if integrator == EXPLICIT:
+        return 2 * x - xp - damping * h * (x - xp) + h2 * inv_i * (-k * x + moment)
+    a = k * h2 * inv_i
+    b = 0.5 * damping * h
+    return (2 * x - xp - a * (W_NOW * x + W_PREV * xp) + b * xp + h2 * inv_i * moment) / (
+        1.0 + a * W_NEXT + b)
+
+
+@njit(cache=True)
+def integrate_strands(state,
+                      strands,
+                      forces,
+                      R,
+                      roots,
+                      bodies,
+                      collide,
+                      damping,
+                      h,
+                      integrator,
+                      stats):
+    """
+    Advance every segment by eq. 1, from root to tip, and place the vertices.
+
+    Per segment: re-centre its chart, the moments of eq. 4, the update of eq. 6 (or the
+    implicit variant), a clamp of the turn (counted), the position guard. stats gets
+    [MAX_RATE] the fastest a segment's end moved about its start (m/s), [RECHARTS],
+    [GUARD_MOVES], [MIN_SIN_THETA] and [TURN_CLAMPS]. Returns the segments updated.
+    """
+    theta, phi, theta_prev, phi_prev = state.theta, state.phi, state.theta_prev, state.phi_prev
+    chart, rest_dir = state.chart, state.rest_dir
+    pos, pos_prev, length = strands.pos, strands.pos_prev, strands.length
+    f_dist, f_end = forces.f_dist, forces.f_end
+    spheres, masks = bodies.spheres, bodies.masks
+    n_s, n_seg = theta.shape
+    max_rate = 0.0
+    recharts = 0
+    guards = 0
+    clamps = 0
+    min_sin = 1.0
+    for s in range(n_s):
+        for j in range(n_seg + 1):
+            pos_prev[s, j, 0] = pos[s, j, 0]
+            pos_prev[s, j, 1] = pos[s, j, 1]
+            pos_prev[s, j, 2] = pos[s, j, 2]
+        px, py, pz = roots[s, 0], roots[s, 1], roots[s, 2]
+        pos[s, 0, 0], pos[s, 0, 1], pos[s, 0, 2] = px, py, pz
+        mask = masks[s] if collide else np.int64(0)
+        for i in range(n_seg):
+            C = chart[s, i]
+            rx, ry, rz = rotate(R, rest_dir[s, i, 0], rest_dir[s, i, 1], rest_dir[s, i, 2])
+            th, ph, thp, php, th0, ph0, recharted = _recentre(
+                C, theta[s, i], phi[s, i], theta_prev[s, i], phi_prev[s, i], rx, ry, rz)
+            if recharted:
+                recharts += 1
+            st = sin(th)
+            if st < min_sin:
+                min_sin = st
+            seg_len = length[s, i]
+            m_th, m_ph = _moments(C, th, ph, seg_len, f_dist[s, i], f_end[s, i])
+            k = state.k_hinge[s, i]
+            ii = state.inv_inertia[s, i]
+            x_th = th - th0                 # deviations from the rest angles (eq. 3)
+            x_thp = thp - th0
+            x_ph = _wrap(ph - ph0)
+            x_php = x_ph - _wrap(ph - php)
+            d_th = _next_deviation(x_th, x_thp, m_th, k, ii, damping, h, integrator) - x_th
+            d_ph = _next_deviation(x_ph, x_php, m_ph, k, ii, damping, h, integrator) - x_ph
+            if abs(d_th) > MAX_TURN or abs(d_ph) > MAX_TURN:   # guard: counted, not hidden
+                d_th = min(MAX_TURN, max(-MAX_TURN, d_th))
+                d_ph = min(MAX_TURN, max(-MAX_TURN, d_ph))
+                clamps += 1
+            new_th = th + d_th
+            new_ph = ph + d_ph
+            dx, dy, dz = _direction(C, new_th, new_ph)
+            ex, ey, ez = px + seg_len * dx, py + seg_len * dy, pz + seg_len * dz
+            moved = False
+            if mask != 0:
+                ex, ey, ez, moved = guard_segment(px, py, pz, ex, ey, ez, seg_len, spheres,
+                                                  mask)
+            if moved:
+                # contact: the segment is turned out of the sphere and stopped there
+                inv = 1.0 / seg_len
+                new_th, new_ph = _angles(C, (ex - px) * inv, (ey - py) * inv, (ez - pz) * inv)
+                theta_prev[s, i] = new_th
+                phi_prev[s, i] = new_ph
+                guards += 1
+            else:
+                theta_prev[s, i] = th
+                phi_prev[s, i] = new_ph - d_ph
+            wrapped = _wrap(new_ph)
+            phi_prev[s, i] += wrapped - new_ph
+            theta[s, i] = new_th
+            phi[s, i] = wrapped
+            sn = sin(new_th)
+            turn = max(abs(new_th - theta_prev[s, i]), abs(wrapped - phi_prev[s, i]) * sn)
+            rate = turn * seg_len / h
+            if rate > max_rate:
+                max_rate = rate
+            pos[s, i + 1, 0], pos[s, i + 1, 1], pos[s, i + 1, 2] = ex, ey, ez
+            px, py, pz = ex, ey, ez
+    stats[MAX_RATE] = max_rate
+    stats[RECHARTS] += recharts
+    stats[GUARD_MOVES] += guards
+    stats[MIN_SIN_THETA] = min(stats[MIN_SIN_THETA], min_sin)
+    stats[TURN_CLAMPS] += clamps
+    return n_s * n_seg
+
+
+@njit(cache=True)
+def finite_difference_velocities(pos, pos_prev, h_prev, vel):
+    """Vertex velocities (pos - pos_prev) / h_prev: what this model knows of its speed."""
+    inv_h = 1.0 / h_prev
+    for s in range(pos.shape[0]):
+        for j in range(pos.shape[1]):
+            for a in range(3):
+                vel[s, j, a] = (pos[s, j, a] - pos_prev[s, j, a]) * inv_h
+
+
+def compensated_rest(modeled_dir, mass, length, k_hinge, params):
+    """
+    Return rest directions (head frame) whose equilibrium under gravity is the model.
+
+    A styled hairstyle holds its shape: with gravity_compensation each hinge's rest
+    direction (eq. 3) is turned against the gravity moment (eq. 4) it carries with the
+    head upright, by -tau / k, so the modeled strands are the resting state. Turns are
+    capped at 0.5 rad (hair too soft to hold such a style simply sags).
+    """
+    d = modeled_dir
+    if not params.gravity_compensation:
+        return d.copy()
+    force = mass[..., None] * np.array([0.0, 0.0, -params.gravity])
+    tau = 0.5 * length[..., None] * np.cross(d, force)       # about the start
+    k = k_hinge[..., None]
+    # no hinge (k = 0) can hold no style: then the hair simply hangs
+    rot = np.where(k > 0, -tau / np.where(k > 0, k, 1.0), 0.0)
+    angle = np.linalg.norm(rot, axis=-1, keepdims=True)
+    capped = np.minimum(angle, 0.5)
+    axis = rot / np.maximum(angle, 1e-300)
+    c, s = np.cos(capped), np.sin(capped)
+    out = d * c + np.cross(axis, d) * s + axis * (axis * d).sum(-1, keepdims=True) * (1 - c)
+    return out / np.linalg.norm(out, axis=-1, keepdims=True)
+
+
+class AnjyoSolver:
+    """
+    Thin class over the kernels above: per-segment angles, charts and hinge constants.
+
+    Driven by HairSimulator, which owns the strands, the head and the shared forces.
+    """
+
+    name = 'anjyo'
+    root_inertia = True             # segments swing about roots taken as fixed: -m a_root
+
+    def __init__(self, sim):
+        n_s, n_seg = sim.length.shape
+        self.theta = np.zeros((n_s, n_seg))
+        self.phi = np.zeros((n_s, n_seg))
+        self.theta_prev = np.zeros((n_s, n_seg))
+        self.phi_prev = np.zeros((n_s, n_seg))
+        self.chart = np.zeros((n_s, n_seg, 3, 3))
+        self.update_material(sim)
+
+    def update_material(self, sim):
+        """Recompute inertia, hinge stiffness (eq. 3) and rest directions from sim.params."""
+        p = sim.params
+        self.inv_inertia = 3.0 / (sim.mass * sim.length ** 2)         # rod about its end
+        self.k_hinge = p.bending_stiffness / sim.length              # cantilever, eq. 3
+        self.rest_dir = np.ascontiguousarray(compensated_rest(
+            sim.modeled_dir, sim.mass, sim.length, self.k_hinge, p))
+
+    def state(self):
+        """Return the kernels' view of the state (arrays shared, not copied)."""
+        return AnjyoState(theta=self.theta, phi=self.phi, theta_prev=self.theta_prev,
+                          phi_prev=self.phi_prev, chart=self.chart, rest_dir=self.rest_dir,
+                          inv_inertia=self.inv_inertia, k_hinge=self.k_hinge)
+
+    def place(self, sim, world_dir):
+        """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""
+        init_charts(np.ascontiguousarray(world_dir), self.chart, self.theta, self.phi)
+        self.hold()
+
+    def place_at_rest(self, sim):
+        """Put every segment at its modeled direction under the current head, at rest."""
+        self.place(sim, sim.modeled_dir @ sim.head_pose[0].T)
+
+    def kinetic_energy(self, sim):
+        """Return the kinetic energy (J) of the segments' centres over the last step."""
+        v = (sim.pos - sim.pos_prev) / sim.last_dt
+        vm = 0.5 * (v[:, 1:] + v[:, :-1])
+        return float(0.5 * (sim.mass[..., None] * vm ** 2).sum())
+
+    def hold(self):
+        """Forget the motion: the previous angles become the current ones (at rest)."""
+        self.theta_prev[:] = self.theta
+        self.phi_prev[:] = self.phi
+
+    def rotate(self, dR):
+        """Turn every segment rigidly by dR (a teleport of the head)."""
+        rotate_charts(self.chart, dR)
+
+    def velocities(self, sim, h_prev):
+        """Fill sim.vel from the last step's displacement."""
+        finite_difference_velocities(sim.pos, sim.pos_prev, h_prev, sim.vel)
+
+    def step(self, sim, h, R, roots):
+        """Advance eqs. 1-6 by h with the forces in sim.forces; return segments updated."""
+        p = sim.params
+        return integrate_strands(
+            self.state(),
+            sim.strands,
+            sim.forces,
+            R,
+            roots,
+            sim.bodies,
+            p.collisions,
+            p.damping,
+            h,
+            EXPLICIT if p.integrator == 'explicit' else IMPLICIT,
+            sim.stats,
+        )
+
+    @staticmethod
+    def stability_problem(params, length, dt, margin):
+        """Return why params would be unstable at dt for these segment lengths, or None."""
+        mass = params.linear_density * length
+        inv_i = 3.0 / (mass * length ** 2)                              # rod about its end
+        k_h = params.bending_stiffness / length
+        springs = 0.0
+        if params.inter_strip:
+            springs += params.neighbor_stiffness + params.wall_stiffness + \
+                params.scalp_stiffness
+        if params.collisions:
+            springs += params.collision_stiffness
+        # per-metre springs on a segment of mass lambda l, acting at its end: k l * l^2 / I;
+        # air damping acts on the centre, explicitly
+        explicit = (0.5 * mass * params.gravity * length + springs * length ** 3) * inv_i
+        if params.integrator == 'explicit':
+            explicit = explicit + k_h * inv_i
+            if params.damping * dt > 2.0 * margin:
+                return ('damping %g/s with the explicit integrator needs dt below %.2g s'
+                        % (params.damping, 2.0 * margin / params.damping))
+        if params.air_damping * dt > 2.0 * margin:
+            return ('air_damping %g/s needs dt below %.2g s'
+                    % (params.air_damping, 2.0 * margin / params.air_damping))
+        omega = float(np.sqrt(explicit.max()))
+        if omega * dt > 2.0 * margin:
+            return ('unstable with the %s integrator at dt = %.4g s: the stiffest explicit '
+                    'term has omega = %.0f rad/s, which needs dt below %.3g s'
+                    % (params.integrator, dt, omega, 2.0 * margin / omega))
+        return None

@@ -1,0 +1,778 @@
+"""
+The exact strand model: a chain of rigid rods on spherical joints, O(segments) per strand.
+
+Each segment is a rigid rod of mass m = lambda l spread along it (inertia m l^2 / 12 about
+its centre across the rod; about its axis the rod's own 0.5 m r^2 with r the bundle's
+radius), joined to its parent (the head, for the first) by a ball joint at its start. A
+bending spring k = EI / l acts on the *relative* rotation between neighbouring segments,
+the discrete curvature of the Hencky bar-chain: the torque on the child is -k R e, with
+R_child = R_parent R_rest Exp(e); `root_stiffness_scale` multiplies the first joint's k
+(the follicle). Joints have damping d = damping * m l^2 / 3 on their relative angular
+velocity. Twist: the joints are 3-DOF like MuJoCo's ball joints, and the same spring acts
+on twist; a thin rod's twist inertia is tiny, so twist is stiff and fast, but nothing
+external twists a rod of zero width, and the spring is implicit (below), so it stays at
+rest without costing a smaller step.
+
+Dynamics are exact and coupled: every joint carries the inertia and weight of everything
+beyond it. Featherstone's articulated-body algorithm, written for this chain in the world
+frame with each body's reference point at its joint (3x3 blocks: the spatial transforms
+between joints are pure translations along the rods):
+
+- backward (tip to root): each body's inertia about its joint [[J, m[r]], [-m[r], m]],
+  velocity-product bias and external wrench (the shared per-segment forces), plus the
+  child's articulated inertia and bias seen through its joint, give the body's articulated
+  inertia I^A and bias p^A; the ball joint's 3x3 D = A + c I gets the implicit spring and
+  damper folded in, c = GAMMA h^2 k + h d (DART does this in its GenericJoint);
+- forward (root to tip): joint accelerations q'' = D^-1 (u - U^T a_parent) from the head's
+  own motion (the base motion: its angular acceleration and the root's acceleration),
+  so a head turn's lag comes out of the dynamics, not from an added force;
+- semi-implicit Euler on SO(3): omega += h alpha, R <- Exp(h omega) R.
+
+The spring is taken as -k (e + GAMMA h (omega_rel+ - delta omega_rel)): for a linear spring
+with symplectic Euler the step's determinant is (1 + delta b) / (1 + GAMMA b), b = h^2 k / I,
+and it is stable for any stiffness when GAMMA >= 1/4. delta = GAMMA (1 - UNRESOLVED_DAMPING
+(b / (1 + b))^4): modes the step resolves (b << 1) keep their energy (tested), while modes
+it cannot resolve (b >> 1) lose about half of it every step instead of ringing on.
+
+The step is Stormer-Verlet in position form: half a drift, the articulated-body pass at the
+mid-step configuration, a kick, the other half drift (second order; energy drifts a
+fraction of a percent over 10 s at 1/240 s, tested). The velocity-product terms use the
+angular velocities predicted at mid-step from the last accelerations, a prediction that
+fades out where a joint's spring is too stiff for the step (b >> 1). Gravity, contacts and
+the inter-strip springs stay explicit: `stability_problem` says when a setting needs a
+smaller step; a step that would turn a segment by more than MAX_STEP_ROTATION is split.
+
+Rest shape (sag-free): one recursive Newton-Euler pass at the modeled pose (head upright,
+at rest, full distal loads; Hsu et al. 2023, Derouet-Jourdan et al. 2013) gives each
+joint the torque that holds everything beyond it; the joint's rest rotation is turned so
+that its spring supplies exactly that, and the modeled style is the equilibrium.
+"""
+
+from collections import namedtuple
+from math import acos, cos, sin, sqrt
+
+from numba import njit
+import numpy as np
+
+from hair_sim.physics.forces import GUARD_MOVES, guard_segment, MAX_RATE
+
+GAMMA = 0.3                  # weight of the implicit spring increment (>= 1/4: stable)
+UNRESOLVED_DAMPING = 0.5     # share of a step's spring increment that damps unresolved modes
+MAX_REST_TURN = 1.0          # rad: the sag-free rest turn is capped (too soft to hold)
+MAX_STEP_ROTATION = 0.1      # rad a segment may turn in one (sub)step
+MAX_SUBSTEPS = 16
+
+ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', 'd',
+                                       'inertia_axial'])
+
+
+# ------------------------------------------------------------------ 3x3 helpers
+@njit(cache=True)
+def _skew(a, out):
+    out[0, 0], out[0, 1], out[0, 2] = 0.0, -a[2], a[1]
+    out[1, 0], out[1, 1], out[1, 2] = a[2], 0.0, -a[0]
+    out[2, 0], out[2, 1], out[2, 2] = -a[1], a[0], 0.0
+
+
+@njit(cache=True)
+def _cross(a, b, out):
+    x = a[1] * b[2] - a[2] * b[1]
+    y = a[2] * b[0] - a[0] * b[2]
+    z = a[0] * b[1] - a[1] * b[0]
+    out[0], out[1], out[2] = x, y, z
+
+
+@njit(cache=True)
+def _inv_sym3(A, out):
+    """Inverse of a symmetric positive definite 3x3 matrix."""
+    a, b, c = A[0, 0], A[0, 1], A[0, 2]
+    d, e, f = A[1, 1], A[1, 2], A[2, 2]
+    c00 = d * f - e * e
+    c01 = c * e - b * f
+    c02 = b * e - c * d
+    det = a * c00 + b * c01 + c * c02
+    inv = 1.0 / det
+    out[0, 0] = c00 * inv
+    out[0, 1] = out[1, 0] = c01 * inv
+    out[0, 2] = out[2, 0] = c02 * inv
+    out[1, 1] = (a * f - c * c) * inv
+    out[1, 2] = out[2, 1] = (b * c - a * e) * inv
+    out[2, 2] = (a * d - b * b) * inv
+
+
+@njit(cache=True)
+def exp_so3(wx, wy, wz, out):
+    """Rotation matrix Exp([w]) of a rotation vector (Rodrigues)."""
+    th2 = wx * wx + wy * wy + wz * wz
+    if th2 < 1e-16:
+        s, c1 = 1.0 - th2 / 6.0, 0.5 - th2 / 24.0
+    else:
+        th = sqrt(th2)
+        s, c1 = sin(th) / th, (1.0 - cos(th)) / th2
+    out[0, 0] = 1.0 - c1 * (wy * wy + wz * wz)
+    out[1, 1] = 1.0 - c1 * (wx * wx + wz * wz)
+    out[2, 2] = 1.0 - c1 * (wx * wx + wy * wy)
+    out[0, 1] = c1 * wx * wy - s * wz
+    out[1, 0] = c1 * wx * wy + s * wz
+    out[0, 2] = c1 * wx * wz + s * wy
+    out[2, 0] = c1 * wx * wz - s * wy
+    out[1, 2] = c1 * wy * wz - s * wx
+    out[2, 1] = c1 * wy * wz + s * wx
+
+
+@njit(cache=True)
+def log_so3(Q, out):
+    """Rotation vector of a rotation matrix (the inverse of exp_so3)."""
+    tr = Q[0, 0] + Q[1, 1] + Q[2, 2]
+    c = min(1.0, max(-1.0, 0.5 * (tr - 1.0)))
+    vx, vy, vz = Q[2, 1] - Q[1, 2], Q[0, 2] - Q[2, 0], Q[1, 0] - Q[0, 1]
+    th = acos(c)
+    if th < 1e-6:
+        f = 0.5 + th * th / 12.0
+    elif th < 3.14159 - 1e-3:
+        f = th / (2.0 * sin(th))
+    else:                                    # near pi: the axis from the diagonal
+        ax = sqrt(max(0.0, 0.5 * (Q[0, 0] + 1.0)))
+        ay = sqrt(max(0.0, 0.5 * (Q[1, 1] + 1.0)))
+        az = sqrt(max(0.0, 0.5 * (Q[2, 2] + 1.0)))
+        if ax >= ay and ax >= az:
+            ay = np.copysign(ay, Q[0, 1] + Q[1, 0])
+            az = np.copysign(az, Q[0, 2] + Q[2, 0])
+        elif ay >= az:
+            ax = np.copysign(ax, Q[0, 1] + Q[1, 0])
+            az = np.copysign(az, Q[1, 2] + Q[2, 1])
+        else:
+            ax = np.copysign(ax, Q[0, 2] + Q[2, 0])
+            ay = np.copysign(ay, Q[1, 2] + Q[2, 1])
+        n = sqrt(ax * ax + ay * ay + az * az)
+        out[0], out[1], out[2] = th * ax / n, th * ay / n, th * az / n
+        return
+    out[0], out[1], out[2] = f * vx, f * vy, f * vz
+
+
+@njit(cache=True)
+def _orthonormalize(R):
+    """Gram-Schmidt on the columns, z (the rod) first: keep R a rotation under roundoff."""
+    zx, zy, zz = R[0, 2], R[1, 2], R[2, 2]
+    n = sqrt(zx * zx + zy * zy + zz * zz)
+    zx, zy, zz = zx / n, zy / n, zz / n
+    xx, xy, xz = R[0, 0], R[1, 0], R[2, 0]
+    dot = xx * zx + xy * zy + xz * zz
+    xx, xy, xz = xx - dot * zx, xy - dot * zy, xz - dot * zz
+    n = sqrt(xx * xx + xy * xy + xz * xz)
+    xx, xy, xz = xx / n, xy / n, xz / n
+    R[0, 0], R[1, 0], R[2, 0] = xx, xy, xz
+    R[0, 1], R[1, 1], R[2, 1] = zy * xz - zz * xy, zz * xx - zx * xz, zx * xy - zy * xx
+    R[0, 2], R[1, 2], R[2, 2] = zx, zy, zz
+
+
+@njit(cache=True)
+def spring_error(Rp, rest_rel, Ri, out, scratch):
+    """e with Ri = Rp rest_rel Exp(e): the joint's deviation from rest, in the child frame."""
+    # scratch = rest_rel^T Rp^T Ri
+    for a in range(3):
+        for b in range(3):
+            acc = 0.0
+            for c in range(3):
+                # (Rp rest_rel)[c, a]
+                q = Rp[c, 0] * rest_rel[0, a] + Rp[c, 1] * rest_rel[1, a] + \
+                    Rp[c, 2] * rest_rel[2, a]
+                acc += q * Ri[c, b]
+            scratch[a, b] = acc
+    log_so3(scratch, out)
+
+
+# ------------------------------------------------------------------ the chain step
+@njit(cache=True)
+def step_chains(state,
+                strands,
+                forces,
+                head,
+                roots,
+                root_vel,
+                root_acc,
+                bodies,
+                collide,
+                h,
+                stats):
+    """
+    Advance every strand's chain by h (articulated-body algorithm, see the module text).
+
+    Reads the shared per-segment forces (world), the head's motion (base of every chain),
+    writes the new orientations, angular velocities, vertices and vertex velocities. The
+    position guard turns a segment out of a sphere and removes the inward part of its end's
+    velocity. Returns the segments updated.
+    """
+    R, omega, rest_rel, kj, dj = state.R, state.omega, state.rest_rel, state.k, state.d
+    alpha_prev = state.alpha
+    i_ax = state.inertia_axial
+    pos, pos_prev, vel, length, mass = (strands.pos, strands.pos_prev, strands.vel,
+                                        strands.length, strands.mass)
+    f_dist, f_end = forces.f_dist, forces.f_end
+    spheres, masks = bodies.spheres, bodies.masks
+    n_s, n_seg = length.shape
+    # per-chain scratch (reused for every strand)
+    Acc = np.zeros((n_seg, 3, 3))          # articulated blocks seen at each joint
+    Bcc = np.zeros((n_seg, 3, 3))
+    Mcc = np.zeros((n_seg, 3, 3))
+    pang = np.zeros((n_seg, 3))
+    plin = np.zeros((n_seg, 3))
+    Dinv = np.zeros((n_seg, 3, 3))
+    U_A = np.zeros((n_seg, 3, 3))
+    U_B = np.zeros((n_seg, 3, 3))
+    u = np.zeros((n_seg, 3))
+    alpha = np.zeros((n_seg, 3))
+    wm = np.zeros((n_seg, 3))             # angular velocities predicted at mid-step
+    theta = np.zeros(n_seg)               # share of the drift before the force
+    J = np.zeros((3, 3))
+    B = np.zeros((3, 3))
+    M = np.zeros((3, 3))
+    S = np.zeros((3, 3))
+    T1 = np.zeros((3, 3))
+    T2 = np.zeros((3, 3))
+    D = np.zeros((3, 3))
+    e = np.zeros(3)
+    r = np.zeros(3)
+    av = np.zeros(3)
+    w = np.zeros(3)
+    t3 = np.zeros(3)
+    t4 = np.zeros(3)
+    E = np.zeros((3, 3))
+    Rnew = np.zeros((3, 3))
+    Q = np.zeros((3, 3))
+    max_rate = 0.0
+    guards = 0
+    Rh = head.R
+    for s in range(n_s):
+        # ---------------- part of the drift: the configuration at mid-step (Stormer-Verlet).
+        # A joint too stiff for the step (b = h^2 k / I >> 1) takes its force at the start
+        # instead (symplectic Euler), and its mid-step velocity prediction fades likewise.
+        for i in range(n_seg):
+            bi = h * h * kj[s, i] / (mass[s, i] * length[s, i] ** 2 / 3.0 + i_ax[s, i])
+            theta[i] = 0.5 / (1.0 + bi ** 4)
+            for a in range(3):
+                wm[i, a] = omega[s, i, a] + theta[i] * h * alpha_prev[s, i, a]
+            exp_so3(theta[i] * h * omega[s, i, 0], theta[i] * h * omega[s, i, 1],
+                    theta[i] * h * omega[s, i, 2], E)
+            Ri = R[s, i]
+            for a in range(3):
+                for b in range(3):
+                    Rnew[a, b] = E[a, 0] * Ri[0, b] + E[a, 1] * Ri[1, b] + E[a, 2] * Ri[2, b]
+            _orthonormalize(Rnew)
+            for a in range(3):
+                for b in range(3):
+                    Ri[a, b] = Rnew[a, b]
+        # ---------------- backward pass: articulated inertias, tip to root
+        for i in range(n_seg - 1, -1, -1):
+            seg = length[s, i]
+            m = mass[s, i]
+            dx, dy, dz = R[s, i, 0, 2], R[s, i, 1, 2], R[s, i, 2, 2]
+            r[0], r[1], r[2] = 0.5 * seg * dx, 0.5 * seg * dy, 0.5 * seg * dz
+            # inertia about the joint: (m seg^2 / 3)(1 - d d^T) + I_axial d d^T
+            ip = m * seg * seg / 3.0
+            ia = i_ax[s, i]
+            J[0, 0] = ip + (ia - ip) * dx * dx
+            J[1, 1] = ip + (ia - ip) * dy * dy
+            J[2, 2] = ip + (ia - ip) * dz * dz
+            J[0, 1] = J[1, 0] = (ia - ip) * dx * dy
+            J[0, 2] = J[2, 0] = (ia - ip) * dx * dz
+            J[1, 2] = J[2, 1] = (ia - ip) * dy * dz
+            _skew(r, B)
+            for a in range(3):
+                for b in range(3):
+                    B[a, b] *= m
+                    M[a, b] = m if a == b else 0.0
+            # velocity-product bias: N_b = w x I_c w + m r x (w x (w x r)), F_b = m w x (w x r)
+            wx, wy, wz = wm[i, 0], wm[i, 1], wm[i, 2]
+            w[0], w[1], w[2] = wx, wy, wz
+            icp = m * seg * seg / 12.0
+            wd = wx * dx + wy * dy + wz * dz
+            t3[0] = icp * (wx - wd * dx) + ia * wd * dx
+            t3[1] = icp * (wy - wd * dy) + ia * wd * dy
+            t3[2] = icp * (wz - wd * dz) + ia * wd * dz
+            _cross(w, t3, t3)                         # w x I_c w
+            _cross(w, r, t4)
+            _cross(w, t4, t4)                         # w x (w x r)
+            fbx, fby, fbz = m * t4[0], m * t4[1], m * t4[2]
+            # external wrench about the joint: f_dist at the centre, f_end at the end
+            fdx, fdy, fdz = f_dist[s, i, 0], f_dist[s, i, 1], f_dist[s, i, 2]
+            fex, fey, fez = f_end[s, i, 0], f_end[s, i, 1], f_end[s, i, 2]
+            nex = r[1] * (fdz + 2.0 * fez) - r[2] * (fdy + 2.0 * fey)
+            ney = r[2] * (fdx + 2.0 * fex) - r[0] * (fdz + 2.0 * fez)
+            nez = r[0] * (fdy + 2.0 * fey) - r[1] * (fdx + 2.0 * fex)
+            # r x (m w x (w x r)) joins N_b
+            nbx = t3[0] + r[1] * fbz - r[2] * fby
+            nby = t3[1] + r[2] * fbx - r[0] * fbz
+            nbz = t3[2] + r[0] * fby - r[1] * fbx
+            pa0, pa1, pa2 = nbx - nex, nby - ney, nbz - nez
+            pl0, pl1, pl2 = fbx - fdx - fex, fby - fdy - fey, fbz - fdz - fez
+            # plus the child's articulated inertia and bias, already moved to this joint
+            if i < n_seg - 1:
+                for a in range(3):
+                    for b in range(3):
+                        J[a, b] += Acc[i + 1, a, b]
+                        B[a, b] += Bcc[i + 1, a, b]
+                        M[a, b] += Mcc[i + 1, a, b]
+                pa0 += pang[i + 1, 0]
+                pa1 += pang[i + 1, 1]
+                pa2 += pang[i + 1, 2]
+                pl0 += plin[i + 1, 0]
+                pl1 += plin[i + 1, 1]
+                pl2 += plin[i + 1, 2]
+            # ball joint i: spring and damper on the relative rotation, implicit part c
+            Rp = Rh if i == 0 else R[s, i - 1]
+            spring_error(Rp, rest_rel[s, i], R[s, i], e, Q)
+            k = kj[s, i]
+            dd = dj[s, i]
+            # the implicit spring and damper work from the start-of-step velocities
+            if i == 0:
+                rwx = omega[s, i, 0] - head.w[0]
+                rwy = omega[s, i, 1] - head.w[1]
+                rwz = omega[s, i, 2] - head.w[2]
+            else:
+                rwx = omega[s, i, 0] - omega[s, i - 1, 0]
+                rwy = omega[s, i, 1] - omega[s, i - 1, 1]
+                rwz = omega[s, i, 2] - omega[s, i - 1, 2]
+            Ri = R[s, i]
+            # numerical damping of modes the step cannot resolve, b = h^2 k / I of the joint:
+            # across the rod its swing inertia, along it the (tiny) twist inertia
+            bs = h * h * k / (m * seg * seg / 3.0 + ia)
+            bt = h * h * k / ia
+            dp = GAMMA * UNRESOLVED_DAMPING * (bs / (1.0 + bs)) ** 4 * h * k
+            dt_ = GAMMA * UNRESOLVED_DAMPING * (bt / (1.0 + bt)) ** 4 * h * k
+            rd = (rwx * dx + rwy * dy + rwz * dz) * (dt_ - dp)
+            tqx = -k * (Ri[0, 0] * e[0] + Ri[0, 1] * e[1] + Ri[0, 2] * e[2]) \
+                - (dd + dp) * rwx - rd * dx
+            tqy = -k * (Ri[1, 0] * e[0] + Ri[1, 1] * e[1] + Ri[1, 2] * e[2]) \
+                - (dd + dp) * rwy - rd * dy
+            tqz = -k * (Ri[2, 0] * e[0] + Ri[2, 1] * e[1] + Ri[2, 2] * e[2]) \
+                - (dd + dp) * rwz - rd * dz
+            # the damping is implicit too: D gets h times the damping (anisotropic)
+            cj = GAMMA * h * h * k + h * (dd + dp)
+            ct = h * (dt_ - dp)
+            D[0, 0] = J[0, 0] + cj + ct * dx * dx
+            D[1, 1] = J[1, 1] + cj + ct * dy * dy
+            D[2, 2] = J[2, 2] + cj + ct * dz * dz
+            D[0, 1] = D[1, 0] = J[0, 1] + ct * dx * dy
+            D[0, 2] = D[2, 0] = J[0, 2] + ct * dx * dz
+            D[1, 2] = D[2, 1] = J[1, 2] + ct * dy * dz
+            _inv_sym3(D, S)
+            for a in range(3):
+                for b in range(3):
+                    Dinv[i, a, b] = S[a, b]
+                    U_A[i, a, b] = J[a, b]
+                    U_B[i, a, b] = B[a, b]
+            u[i, 0], u[i, 1], u[i, 2] = tqx - pa0, tqy - pa1, tqz - pa2
+            if i == 0:
+                break                       # the head takes the root joint's wrench
+            # apparent inertia through the joint: I^a = I^A - U D^-1 U^T, U = [J; B^T]
+            for a in range(3):
+                for b in range(3):
+                    T1[a, b] = S[a, 0] * J[0, b] + S[a, 1] * J[1, b] + S[a, 2] * J[2, b]
+                    T2[a, b] = S[a, 0] * B[0, b] + S[a, 1] * B[1, b] + S[a, 2] * B[2, b]
+            for a in range(3):
+                for b in range(3):
+                    Q[a, b] = J[a, b] - (J[a, 0] * T1[0, b] + J[a, 1] * T1[1, b]
+                                         + J[a, 2] * T1[2, b])          # A^a
+                    E[a, b] = B[a, b] - (J[a, 0] * T2[0, b] + J[a, 1] * T2[1, b]
+                                         + J[a, 2] * T2[2, b])          # B^a
+                    D[a, b] = M[a, b] - (B[0, a] * T2[0, b] + B[1, a] * T2[1, b]
+                                         + B[2, a] * T2[2, b])          # M^a
+            # bias: p^a = p^A + I^a c + U D^-1 u, c = [0; w_p x (w_p x a_p)] (a_p: parent rod)
+            lp = length[s, i - 1]
+            av[0], av[1], av[2] = lp * R[s, i - 1, 0, 2], lp * R[s, i - 1, 1, 2], \
+                lp * R[s, i - 1, 2, 2]
+            w[0], w[1], w[2] = wm[i - 1, 0], wm[i - 1, 1], wm[i - 1, 2]
+            _cross(w, av, t4)
+            _cross(w, t4, t4)
+            y0 = S[0, 0] * u[i, 0] + S[0, 1] * u[i, 1] + S[0, 2] * u[i, 2]
+            y1 = S[1, 0] * u[i, 0] + S[1, 1] * u[i, 1] + S[1, 2] * u[i, 2]
+            y2 = S[2, 0] * u[i, 0] + S[2, 1] * u[i, 1] + S[2, 2] * u[i, 2]
+            qa0 = pa0 + E[0, 0] * t4[0] + E[0, 1] * t4[1] + E[0, 2] * t4[2] + \
+                J[0, 0] * y0 + J[0, 1] * y1 + J[0, 2] * y2
+            qa1 = pa1 + E[1, 0] * t4[0] + E[1, 1] * t4[1] + E[1, 2] * t4[2] + \
+                J[1, 0] * y0 + J[1, 1] * y1 + J[1, 2] * y2
+            qa2 = pa2 + E[2, 0] * t4[0] + E[2, 1] * t4[1] + E[2, 2] * t4[2] + \
+                J[2, 0] * y0 + J[2, 1] * y1 + J[2, 2] * y2
+            ql0 = pl0 + D[0, 0] * t4[0] + D[0, 1] * t4[1] + D[0, 2] * t4[2] + \
+                B[0, 0] * y0 + B[1, 0] * y1 + B[2, 0] * y2
+            ql1 = pl1 + D[1, 0] * t4[0] + D[1, 1] * t4[1] + D[1, 2] * t4[2] + \
+                B[0, 1] * y0 + B[1, 1] * y1 + B[2, 1] * y2
+            ql2 = pl2 + D[2, 0] * t4[0] + D[2, 1] * t4[1] + D[2, 2] * t4[2] + \
+                B[0, 2] * y0 + B[1, 2] * y1 + B[2, 2] * y2
+            # move to the parent's joint, a_p back along the parent rod:
+            # A' = A - B[a] + [a]B^T - [a]M[a], B' = B + [a]M, M' = M, p'_ang = p_ang + a x p_lin
+            _skew(av, T1)
+            for a in range(3):
+                for b in range(3):
+                    T2[a, b] = T1[a, 0] * D[0, b] + T1[a, 1] * D[1, b] + T1[a, 2] * D[2, b]
+            for a in range(3):
+                for b in range(3):
+                    Acc[i, a, b] = Q[a, b] \
+                        - (E[a, 0] * T1[0, b] + E[a, 1] * T1[1, b] + E[a, 2] * T1[2, b]) \
+                        + (T1[a, 0] * E[b, 0] + T1[a, 1] * E[b, 1] + T1[a, 2] * E[b, 2]) \
+                        - (T2[a, 0] * T1[0, b] + T2[a, 1] * T1[1, b] + T2[a, 2] * T1[2, b])
+                    Bcc[i, a, b] = E[a, b] + T2[a, b]
+                    Mcc[i, a, b] = D[a, b]
+            pang[i, 0] = qa0 + av[1] * ql2 - av[2] * ql1
+            pang[i, 1] = qa1 + av[2] * ql0 - av[0] * ql2
+            pang[i, 2] = qa2 + av[0] * ql1 - av[1] * ql0
+            plin[i, 0], plin[i, 1], plin[i, 2] = ql0, ql1, ql2
+        # ---------------- forward pass: accelerations, root to tip
+        ax_, ay_, az_ = head.alpha[0], head.alpha[1], head.alpha[2]
+        lx, ly, lz = root_acc[s, 0], root_acc[s, 1], root_acc[s, 2]
+        for i in range(n_seg):
+            if i > 0:
+                lp = length[s, i - 1]
+                bx, by, bz = lp * R[s, i - 1, 0, 2], lp * R[s, i - 1, 1, 2], \
+                    lp * R[s, i - 1, 2, 2]
+                px_, py_, pz_ = alpha[i - 1, 0], alpha[i - 1, 1], alpha[i - 1, 2]
+                wx, wy, wz = wm[i - 1, 0], wm[i - 1, 1], wm[i - 1, 2]
+                cx = wy * bz - wz * by
+                cy = wz * bx - wx * bz
+                cz = wx * by - wy * bx
+                lx += py_ * bz - pz_ * by + wy * cz - wz * cy
+                ly += pz_ * bx - px_ * bz + wz * cx - wx * cz
+                lz += px_ * by - py_ * bx + wx * cy - wy * cx
+                ax_, ay_, az_ = px_, py_, pz_
+            # q'' = D^-1 (u - J alpha_p - B a_p)
+            g0 = u[i, 0] - (U_A[i, 0, 0] * ax_ + U_A[i, 0, 1] * ay_ + U_A[i, 0, 2] * az_
+                            + U_B[i, 0, 0] * lx + U_B[i, 0, 1] * ly + U_B[i, 0, 2] * lz)
+            g1 = u[i, 1] - (U_A[i, 1, 0] * ax_ + U_A[i, 1, 1] * ay_ + U_A[i, 1, 2] * az_
+                            + U_B[i, 1, 0] * lx + U_B[i, 1, 1] * ly + U_B[i, 1, 2] * lz)
+            g2 = u[i, 2] - (U_A[i, 2, 0] * ax_ + U_A[i, 2, 1] * ay_ + U_A[i, 2, 2] * az_
+                            + U_B[i, 2, 0] * lx + U_B[i, 2, 1] * ly + U_B[i, 2, 2] * lz)
+            alpha[i, 0] = ax_ + Dinv[i, 0, 0] * g0 + Dinv[i, 0, 1] * g1 + Dinv[i, 0, 2] * g2
+            alpha[i, 1] = ay_ + Dinv[i, 1, 0] * g0 + Dinv[i, 1, 1] * g1 + Dinv[i, 1, 2] * g2
+            alpha[i, 2] = az_ + Dinv[i, 2, 0] * g0 + Dinv[i, 2, 1] * g1 + Dinv[i, 2, 2] * g2
+        # ---------------- integrate, place the vertices, guard
+        for j in range(n_seg + 1):
+            pos_prev[s, j, 0] = pos[s, j, 0]
+            pos_prev[s, j, 1] = pos[s, j, 1]
+            pos_prev[s, j, 2] = pos[s, j, 2]
+        px, py, pz = roots[s, 0], roots[s, 1], roots[s, 2]
+        vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
+        pos[s, 0, 0], pos[s, 0, 1], pos[s, 0, 2] = px, py, pz
+        vel[s, 0, 0], vel[s, 0, 1], vel[s, 0, 2] = vx, vy, vz
+        mask = masks[s] if collide else np.int64(0)
+        for i in range(n_seg):
+            wx = omega[s, i, 0] + h * alpha[i, 0]
+            wy = omega[s, i, 1] + h * alpha[i, 1]
+            wz = omega[s, i, 2] + h * alpha[i, 2]
+            f = (1.0 - theta[i]) * h                                   # the rest of the drift
+            exp_so3(f * wx, f * wy, f * wz, E)
+            Ri = R[s, i]
+            for a in range(3):
+                for b in range(3):
+                    Rnew[a, b] = E[a, 0] * Ri[0, b] + E[a, 1] * Ri[1, b] + E[a, 2] * Ri[2, b]
+            _orthonormalize(Rnew)
+            seg = length[s, i]
+            ex = px + seg * Rnew[0, 2]
+            ey = py + seg * Rnew[1, 2]
+            ez = pz + seg * Rnew[2, 2]
+            if mask != 0:
+                gx, gy, gz, moved = guard_segment(px, py, pz, ex, ey, ez, seg, spheres, mask)
+                if moved:
+                    # turn the rod minimally onto the guarded direction
+                    ox, oy, oz = Rnew[0, 2], Rnew[1, 2], Rnew[2, 2]
+                    nx, ny, nz = (gx - px) / seg, (gy - py) / seg, (gz - pz) / seg
+                    t3[0], t3[1], t3[2] = oy * nz - oz * ny, oz * nx - ox * nz, ox * ny - oy * nx
+                    sn = sqrt(t3[0] ** 2 + t3[1] ** 2 + t3[2] ** 2)
+                    cs = ox * nx + oy * ny + oz * nz
+                    if sn > 1e-15:
+                        ang = np.arctan2(sn, cs)
+                        exp_so3(t3[0] / sn * ang, t3[1] / sn * ang, t3[2] / sn * ang, E)
+                        for a in range(3):
+                            for b in range(3):
+                                Q[a, b] = E[a, 0] * Rnew[0, b] + E[a, 1] * Rnew[1, b] + \
+                                    E[a, 2] * Rnew[2, b]
+                        for a in range(3):
+                            for b in range(3):
+                                Rnew[a, b] = Q[a, b]
+                        _orthonormalize(Rnew)
+                    # stop the end's motion into the sphere: the correction points outwards
+                    cx, cy, cz = gx - ex, gy - ey, gz - ez
+                    cn = sqrt(cx * cx + cy * cy + cz * cz)
+                    if cn > 1e-15:
+                        cx, cy, cz = cx / cn, cy / cn, cz / cn
+                        bx, by, bz = seg * Rnew[0, 2], seg * Rnew[1, 2], seg * Rnew[2, 2]
+                        # the end's velocity relative to the start: (w - w_parent) x b
+                        if i == 0:
+                            qx, qy, qz = wx - head.w[0], wy - head.w[1], wz - head.w[2]
+                        else:
+                            qx, qy, qz = wx - omega[s, i - 1, 0], wy - omega[s, i - 1, 1], \
+                                wz - omega[s, i - 1, 2]
+                        vrn = (qy * bz - qz * by) * cx + (qz * bx - qx * bz) * cy + \
+                            (qx * by - qy * bx) * cz
+                        if vrn < 0.0:
+                            # dw = s (b x c) / |b x c|^2 makes (dw x b) . c = s
+                            kx, ky, kz = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx
+                            kk = kx * kx + ky * ky + kz * kz
+                            if kk > 1e-18:
+                                f = -vrn / kk
+                                wx += f * kx
+                                wy += f * ky
+                                wz += f * kz
+                    ex, ey, ez = gx, gy, gz
+                    guards += 1
+            for a in range(3):
+                for b in range(3):
+                    R[s, i, a, b] = Rnew[a, b]
+            omega[s, i, 0], omega[s, i, 1], omega[s, i, 2] = wx, wy, wz
+            alpha_prev[s, i, 0], alpha_prev[s, i, 1], alpha_prev[s, i, 2] = \
+                alpha[i, 0], alpha[i, 1], alpha[i, 2]
+            bx, by, bz = seg * Rnew[0, 2], seg * Rnew[1, 2], seg * Rnew[2, 2]
+            vx += wy * bz - wz * by
+            vy += wz * bx - wx * bz
+            vz += wx * by - wy * bx
+            pos[s, i + 1, 0], pos[s, i + 1, 1], pos[s, i + 1, 2] = ex, ey, ez
+            vel[s, i + 1, 0], vel[s, i + 1, 1], vel[s, i + 1, 2] = vx, vy, vz
+            if i == 0:
+                qx, qy, qz = wx - head.w[0], wy - head.w[1], wz - head.w[2]
+            else:
+                qx, qy, qz = wx - omega[s, i - 1, 0], wy - omega[s, i - 1, 1], \
+                    wz - omega[s, i - 1, 2]
+            rate = seg * sqrt(qx * qx + qy * qy + qz * qz)
+            if rate > max_rate:
+                max_rate = rate
+            px, py, pz = ex, ey, ez
+    stats[MAX_RATE] = max_rate
+    stats[GUARD_MOVES] += guards
+    return n_s * n_seg
+
+
+# ------------------------------------------------------------------ set-up (numpy, once)
+def frames_along(directions, first):
+    """
+    Return rotation matrices (..., n, 3, 3) whose z columns are `directions` (..., n, 3).
+
+    Twist-free: each frame is its predecessor turned by the smallest rotation taking one
+    direction to the next (parallel transport); the first starts from `first` (..., 3, 3)
+    turned minimally onto the first direction.
+    """
+    d = np.asarray(directions, dtype=np.float64)
+    out = np.empty(d.shape[:-1] + (3, 3))
+    prev = np.asarray(first, dtype=np.float64)
+    prev_z = prev[..., :, 2]
+    for i in range(d.shape[-2]):
+        out[..., i, :, :] = minimal_rotation(prev_z, d[..., i, :]) @ prev
+        prev = out[..., i, :, :]
+        prev_z = d[..., i, :]
+    return out
+
+
+def minimal_rotation(a, b):
+    """Return the smallest rotations (..., 3, 3) taking unit vectors a to b (..., 3)."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    v = np.cross(a, b)
+    c = (a * b).sum(-1)
+    s2 = (v * v).sum(-1)
+    K = np.zeros(v.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2] = -v[..., 2], v[..., 1]
+    K[..., 1, 0], K[..., 1, 2] = v[..., 2], -v[..., 0]
+    K[..., 2, 0], K[..., 2, 1] = -v[..., 1], v[..., 0]
+    f = np.where(s2 > 1e-30, (1.0 - c) / np.where(s2 > 1e-30, s2, 1.0), 0.5)
+    R = np.eye(3) + K + (K @ K) * f[..., None, None]
+    # opposite directions: a half turn about any axis perpendicular to a
+    flip = (c < -1.0 + 1e-12)
+    if np.any(flip):
+        af = a[flip]
+        axis = np.cross(af, np.where(np.abs(af[..., :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
+        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+        R[flip] = 2.0 * axis[..., :, None] * axis[..., None, :] - np.eye(3)
+    return R
+
+
+def rotvec_to_matrix(v):
+    """Exp of rotation vectors (..., 3) as matrices (..., 3, 3)."""
+    v = np.asarray(v, dtype=np.float64)
+    out = np.empty(v.shape[:-1] + (3, 3))
+    flat_v = v.reshape(-1, 3)
+    flat = out.reshape(-1, 3, 3)
+    for k in range(len(flat_v)):
+        exp_so3(flat_v[k, 0], flat_v[k, 1], flat_v[k, 2], flat[k])
+    return out
+
+
+def sag_free_rest(frames, length, mass, k, gravity):
+    """
+    Return each joint's rest rotation relative to its parent (n_s, n_seg, 3, 3).
+
+    frames: the modeled orientations (head frame, head upright). One recursive
+    Newton-Euler pass (statics) gives the torque joint i must hold, tau_i = -sum over the
+    segments beyond of (c_j - p_i) x m_j g; the rest rotation is turned so that the spring
+    gives it: -k R e = tau, e = -R^T tau / k (capped at MAX_REST_TURN; no spring, no hold).
+    """
+    n_s, n_seg = length.shape
+    d = frames[..., :, 2]
+    seg = d * length[..., None]
+    joints = np.concatenate([np.zeros((n_s, 1, 3)), np.cumsum(seg, axis=1)], axis=1)
+    centres = joints[:, :-1] + 0.5 * seg
+    weight = mass[..., None] * np.asarray(gravity, dtype=np.float64)
+    parents = np.concatenate([np.broadcast_to(np.eye(3), (n_s, 1, 3, 3)), frames[:, :-1]],
+                             axis=1)
+    rel = np.swapaxes(parents, -1, -2) @ frames
+    # moment of the weights beyond joint i about joint i: sum_j (c_j - p_i) x w_j
+    moment_about_origin = np.cumsum(np.cross(centres, weight)[:, ::-1], axis=1)[:, ::-1]
+    weight_beyond = np.cumsum(weight[:, ::-1], axis=1)[:, ::-1]
+    tau = -(moment_about_origin - np.cross(joints[:, :-1], weight_beyond))
+    e = np.zeros_like(tau)
+    held = k > 0
+    e[held] = -np.einsum('nji,nj->ni', frames[held], tau[held]) / k[held][:, None]
+    ang = np.linalg.norm(e, axis=-1, keepdims=True)
+    e *= np.minimum(1.0, MAX_REST_TURN / np.maximum(ang, 1e-300))
+    return rel @ rotvec_to_matrix(-e)
+
+
+class ArticulatedSolver:
+    """Thin class over step_chains: orientations, angular velocities, joint constants."""
+
+    name = 'articulated'
+    root_inertia = False            # the base motion comes out of the dynamics
+
+    def __init__(self, sim):
+        n_s, n_seg = sim.length.shape
+        self.R = np.zeros((n_s, n_seg, 3, 3))
+        self.omega = np.zeros((n_s, n_seg, 3))
+        self.alpha = np.zeros((n_s, n_seg, 3))
+        self.substeps = 0
+        # the modeled frames, twist-free from the head frame (head upright)
+        self.modeled = frames_along(sim.modeled_dir, np.broadcast_to(np.eye(3), (n_s, 3, 3)))
+        self.update_material(sim)
+
+    def update_material(self, sim):
+        """Recompute joint stiffness, damping, axial inertia and the sag-free rest."""
+        p = sim.params
+        k = p.bending_stiffness / sim.length
+        k[:, 0] *= p.root_stiffness_scale
+        self.k = np.ascontiguousarray(k)
+        self.d = np.ascontiguousarray(p.damping * sim.mass * sim.length ** 2 / 3.0)
+        self.inertia_axial = np.ascontiguousarray(0.5 * sim.mass * p.bundle_radius ** 2)
+        if p.gravity_compensation:
+            rest = sag_free_rest(self.modeled, sim.length, sim.mass, self.k,
+                                 [0.0, 0.0, -p.gravity])
+        else:
+            n_s = len(self.modeled)
+            parents = np.concatenate([np.broadcast_to(np.eye(3), (n_s, 1, 3, 3)),
+                                      self.modeled[:, :-1]], axis=1)
+            rest = np.swapaxes(parents, -1, -2) @ self.modeled
+        self.rest_rel = np.ascontiguousarray(rest)
+
+    def state(self):
+        """Return the kernel's view of the state (arrays shared, not copied)."""
+        return ChainState(R=self.R, omega=self.omega, alpha=self.alpha, rest_rel=self.rest_rel,
+                          k=self.k,
+                          d=self.d, inertia_axial=self.inertia_axial)
+
+    def place(self, sim, world_dir):
+        """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""
+        R_head = sim.head_pose[0]
+        first = np.broadcast_to(R_head, (world_dir.shape[0], 3, 3))
+        self.R[:] = frames_along(world_dir, first)
+        self.hold()
+
+    def place_at_rest(self, sim):
+        """Put every segment at its modeled orientation under the current head."""
+        self.R[:] = sim.head_pose[0] @ self.modeled
+        self.hold()
+
+    def hold(self):
+        """Forget the motion: every segment at rest (zero angular velocity)."""
+        self.omega[:] = 0.0
+        self.alpha[:] = 0.0
+
+    def rotate(self, dR):
+        """Turn every segment rigidly by dR (a teleport of the head)."""
+        self.R[:] = dR @ self.R
+        self.hold()
+
+    def velocities(self, sim, h_prev):
+        """sim.vel is exact already (the last step wrote it)."""
+
+    def step(self, sim, h, R, roots):
+        """
+        Advance every chain by h with the forces in sim.forces; return segments updated.
+
+        A step turns no segment by more than MAX_STEP_ROTATION: when the fastest segment
+        would, the step is split into equal substeps (the forces held), so a whipping tip
+        (tens of rad/s) costs a few substeps instead of stability.
+        """
+        d = self.R[..., :, 2]
+        swing = self.omega - (self.omega * d).sum(-1, keepdims=True) * d   # twist moves nothing
+        fastest = float(np.sqrt((swing * swing).sum(-1)).max()) if swing.size else 0.0
+        n = max(1, min(MAX_SUBSTEPS, int(np.ceil(h * fastest / MAX_STEP_ROTATION))))
+        done = 0
+        for _ in range(n):
+            done += step_chains(
+                self.state(),
+                sim.strands,
+                sim.forces,
+                sim.head_kinematics,
+                roots,
+                sim.root_vel,
+                sim.root_acc,
+                sim.bodies,
+                sim.params.collisions,
+                h / n,
+                sim.stats,
+            )
+        self.substeps += n
+        return done
+
+    def kinetic_energy(self, sim):
+        """Return the exact kinetic energy (J): translation of the centres and rotation."""
+        v = 0.5 * (sim.vel[:, 1:] + sim.vel[:, :-1])   # centre velocity of a rigid rod
+        d = self.R[..., :, 2]
+        w = self.omega
+        wd = (w * d).sum(-1)
+        w_perp2 = (w * w).sum(-1) - wd ** 2
+        ip = sim.mass * sim.length ** 2 / 12.0
+        return float(0.5 * (sim.mass * (v * v).sum(-1)).sum()
+                     + 0.5 * (ip * w_perp2 + self.inertia_axial * wd ** 2).sum())
+
+    def potential_energy(self, sim):
+        """Return the springs' energy (J): sum of k |e|^2 / 2 over the joints."""
+        e = np.zeros(3)
+        q = np.zeros((3, 3))
+        total = 0.0
+        R_head = sim.head_pose[0]
+        for s in range(self.R.shape[0]):
+            for i in range(self.R.shape[1]):
+                parent = R_head if i == 0 else self.R[s, i - 1]
+                spring_error(parent, self.rest_rel[s, i], self.R[s, i], e, q)
+                total += 0.5 * self.k[s, i] * float(e @ e)
+        return total
+
+    @staticmethod
+    def stability_problem(params, length, dt, margin):
+        """
+        Return why params would be unstable at dt for these segment lengths, or None.
+
+        The joint springs are implicit; what stays explicit is gravity's tension (the
+        weight of everything beyond a joint, acting with the segment's lever), the
+        inter-strip and collision springs at the segment's end, and air damping. Each acts
+        against the segment's inertia plus the implicit spring and damper's share.
+        """
+        mass = params.linear_density * length
+        k = params.bending_stiffness / length
+        k[..., 0] *= params.root_stiffness_scale
+        d = params.damping * mass * length ** 2 / 3.0
+        inertia = mass * length ** 2 / 3.0 + GAMMA * dt * dt * k + dt * d
+        beyond = np.cumsum(mass[..., ::-1], axis=-1)[..., ::-1]
+        springs = 0.0
+        if params.inter_strip:
+            springs += params.neighbor_stiffness + params.wall_stiffness + \
+                params.scalp_stiffness
+        if params.collisions:
+            springs += params.collision_stiffness
+        explicit = (beyond * params.gravity * length + springs * length ** 3) / inertia
+        if params.air_damping * dt > 2.0 * margin:
+            return ('air_damping %g/s needs dt below %.2g s'
+                    % (params.air_damping, 2.0 * margin / params.air_damping))
+        omega = float(np.sqrt(explicit.max()))
+        if omega * dt > 2.0 * margin:
+            return ('unstable with the articulated model at dt = %.4g s: the stiffest '
+                    'explicit term (gravity tension, springs) has omega = %.0f rad/s, which '
+                    'needs dt below %.3g s' % (dt, omega, 2.0 * margin / omega))
+        return None
