@@ -15,8 +15,8 @@ publish_rate. The README and BENCHMARKS.md give the resulting numbers of vertice
 """
 
 # s per solver step: fixed (Python, head motion) and per simulated vertex
-STEP_FIXED_S = {'anjyo': 1.4e-4}
-STEP_S = {'anjyo': 3.8e-7}
+STEP_FIXED_S = {'anjyo': 1.4e-4, 'articulated': 1.8e-4}
+STEP_S = {'anjyo': 3.8e-7, 'articulated': 1.1e-6}
 # s per published frame: fixed and per drawn vertex
 FRAME_FIXED_S = 2.0e-4
 DRAW_S = 9.0e-8

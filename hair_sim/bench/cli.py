@@ -9,6 +9,8 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
                                 rates, latency, CPU, avatars per machine, load gaps
     hair_sim_bench budget   [--json] [--quick]                 per-vertex costs behind
                                 the frame budget (hair_sim/budget.py)
+    hair_sim_bench hanging  [--json] [--quick] [--plots DIR]   the hanging-hair scene:
+                                both models against MuJoCo (make bench-deps)
 """
 
 import argparse
@@ -24,7 +26,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog='hair_sim_bench', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress', 'node',
-                                            'budget'])
+                                            'budget', 'hanging'])
     parser.add_argument('--json', action='store_true', help='print JSON on stdout')
     parser.add_argument('--quick', action='store_true', help='a short run (under a minute)')
     parser.add_argument('--plots', default='bench_out', help='directory for PNG plots')
@@ -44,6 +46,9 @@ def main(argv=None):
         from hair_sim.bench import budget
         result = budget.run(args.quick)
         print(json.dumps(clean(result), indent=1) if args.json else json.dumps(clean(result)))
+    elif args.command == 'hanging':
+        from hair_sim.bench import hanging
+        emit(hanging.run(args.quick, args.plots), args.json, 'hanging')
     elif args.command == 'skip':
         from hair_sim.bench import skip
         emit(skip.run(args.quick), args.json, 'skip')

@@ -3,10 +3,11 @@
 import json
 import os
 import sys
-import tempfile
 import time
 
 import numpy as np
+
+from hair_sim.fileio import save_figure  # noqa: F401 (the benches' one place to save)
 
 DT_FULL = [1 / 4000, 1 / 2000, 1 / 1000, 1 / 480, 1 / 240, 1 / 120, 1 / 60, 1 / 30]
 DT_QUICK = [1 / 1000, 1 / 240, 1 / 60]
@@ -52,15 +53,3 @@ def emit(records, as_json, title):
     for r in records:
         print('  ' + ', '.join('%s=%s' % (k, ('%.4g' % v) if isinstance(v, float) else v)
                                for k, v in r.items()))
-
-
-def save_figure(fig, path):
-    """Save a matplotlib figure atomically."""
-    directory = os.path.dirname(os.path.abspath(path))
-    os.makedirs(directory, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=directory, suffix='.png')
-    os.close(fd)
-    fig.savefig(tmp, dpi=100, bbox_inches='tight')
-    os.chmod(tmp, 0o644)
-    os.replace(tmp, path)
-    return path

@@ -1,10 +1,8 @@
 """Look at a hairstyle without ROS: OBJ export and a matplotlib PNG of strips over the head."""
 
-import os
-import tempfile
-
 import numpy as np
 
+from hair_sim.fileio import save_figure, write_atomic
 from hair_sim.modeling.strips import build_strips
 
 
@@ -31,13 +29,7 @@ def export_obj(style, path, positions=None):
             a0, a1 = ia * n_v + j + 1, ia * n_v + j + 2
             b0, b1 = ib * n_v + j + 1, ib * n_v + j + 2
             lines.append('f %d %d %d %d' % (a0, b0, b1, a1))
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=directory, suffix='.tmp')
-    with os.fdopen(fd, 'w') as f:
-        f.write('\n'.join(lines) + '\n')
-    os.chmod(tmp, 0o644)
-    os.replace(tmp, path)
-    return path
+    return write_atomic(path, ('\n'.join(lines) + '\n').encode())
 
 
 def sphere_quads(spheres, n_u=24, n_v=12):
@@ -92,11 +84,6 @@ def render_png(style, path, positions=None, title=None, views=None):
     fig.suptitle(title or '%s: %d strips x %d vertices' % (style.name, strips.n_strips,
                                                            strips.n_vertices), fontsize=10)
     fig.tight_layout()
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=directory, suffix='.png')
-    os.close(fd)
-    fig.savefig(tmp)
+    save_figure(fig, path)
     plt.close(fig)
-    os.chmod(tmp, 0o644)
-    os.replace(tmp, path)
     return path

@@ -44,7 +44,11 @@ N_STATS = 5
 HeadKinematics = namedtuple('HeadKinematics', ['R', 'p', 'v', 'a', 'w', 'alpha'])
 Strands = namedtuple('Strands', ['pos', 'pos_prev', 'vel', 'length', 'mass'])
 Bodies = namedtuple('Bodies', ['spheres', 'sphere_vel', 'masks'])
-Forces = namedtuple('Forces', ['f_dist', 'f_end'])
+# contact: per segment, the stiffness and damping (N/m, N s/m) of its contact with a sphere,
+# the contact's normal and its lever along the segment (0..1); a model may treat them
+# implicitly (the articulated chain does)
+Forces = namedtuple('Forces', ['f_dist', 'f_end', 'contact'])
+CONTACT_K, CONTACT_C, CONTACT_NX, CONTACT_NY, CONTACT_NZ, CONTACT_LEVER = range(6)
 WindField = namedtuple('WindField', ['velocity', 'amplitude', 'mode_dir', 'mode_k', 'mode_w',
                                      'mode_phase'])
 StripSprings = namedtuple('StripSprings', ['pairs', 'rest1', 'wall_sign', 'rest3', 'proj'])
@@ -220,6 +224,18 @@ def _contact_weight(d, r):
 
 
 @njit(cache=True)
+def _record_contact(contact, s, i, k, c, nx, ny, nz, lever):
+    """Keep the stiffest contact of segment i (its normal and lever) for an implicit model."""
+    if k + c > contact[s, i, CONTACT_K] + contact[s, i, CONTACT_C]:
+        contact[s, i, CONTACT_K] = k
+        contact[s, i, CONTACT_C] = c
+        contact[s, i, CONTACT_NX] = nx
+        contact[s, i, CONTACT_NY] = ny
+        contact[s, i, CONTACT_NZ] = nz
+        contact[s, i, CONTACT_LEVER] = lever
+
+
+@njit(cache=True)
 def reaction_constraint_forces(strands,
                                bodies,
                                k_per_m,
@@ -241,9 +257,13 @@ def reaction_constraint_forces(strands,
     """
     pos, vel, length = strands.pos, strands.vel, strands.length
     spheres, sphere_vel, masks = bodies.spheres, bodies.sphere_vel, bodies.masks
-    f_dist, f_end = forces.f_dist, forces.f_end
+    f_dist, f_end, contact = forces.f_dist, forces.f_end, forces.contact
     n_s, n_seg = f_dist.shape[0], f_dist.shape[1]
     contacts = 0
+    for s in range(n_s):
+        for i in range(n_seg):
+            contact[s, i, CONTACT_K] = 0.0
+            contact[s, i, CONTACT_C] = 0.0
     for s in range(n_s):
         mask = masks[s]
         if mask == 0:
@@ -274,6 +294,8 @@ def reaction_constraint_forces(strands,
                     f_end[s, i, 0] += mag * nx
                     f_end[s, i, 1] += mag * ny
                     f_end[s, i, 2] += mag * nz
+                    _record_contact(contact, s, i, k if d < r else 0.0, w * c, nx, ny, nz,
+                                    1.0)
                     contacts += 1
                     continue
                 ax, ay, az = pos[s, i, 0], pos[s, i, 1], pos[s, i, 2]
@@ -306,6 +328,7 @@ def reaction_constraint_forces(strands,
                 f_end[s, i, 0] += tt * mag * nx
                 f_end[s, i, 1] += tt * mag * ny
                 f_end[s, i, 2] += tt * mag * nz
+                _record_contact(contact, s, i, k if dq < r else 0.0, w * c, nx, ny, nz, tt)
                 contacts += 1
     return contacts
 

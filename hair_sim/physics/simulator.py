@@ -1,5 +1,7 @@
 """
-HairSimulator: the driver users call. It owns the strands, the head's motion, the wind,
+HairSimulator: the driver users call.
+
+It owns the strands, the head's motion, the wind,
 the forces pass, sleep and the counters; a strand model (picked by name, like Warp's
 integrators) advances the strands under those forces. State lives in contiguous arrays
 handed to module-level numba kernels (physics/forces.py, physics/solvers/).
@@ -68,7 +70,7 @@ class HairSimulator:
         self.counters = {'steps': 0, 'awake_steps': 0, 'segment_updates': 0,
                          'kernel_calls': 0, 'broad_phase_checks': 0, 'contacts': 0,
                          'wall_springs': 0, 'recharts': 0, 'guard_moves': 0, 'wakes': 0,
-                         'turn_clamps': 0}
+                         'turn_clamps': 0, 'substeps': 0}
         self.last_step_time = 0.0
         self.stability_dt = DEFAULT_DT      # the step set_params checks stability at
         self.state_version = 0              # bumped whenever positions may have changed
@@ -147,6 +149,7 @@ class HairSimulator:
         self.vel = np.zeros_like(self.pos)
         self.f_dist = np.zeros((n_s, n_seg, 3))
         self.f_end = np.zeros((n_s, n_seg, 3))
+        self.contact = np.zeros((n_s, n_seg, 6))
         self.masks = np.zeros(n_s, dtype=np.int64)
         self.roots = np.zeros((n_s, 3))
         self.root_vel = np.zeros((n_s, 3))
@@ -179,7 +182,7 @@ class HairSimulator:
     @property
     def forces(self):
         """Return the per-segment force arrays (world frame)."""
-        return F.Forces(f_dist=self.f_dist, f_end=self.f_end)
+        return F.Forces(f_dist=self.f_dist, f_end=self.f_end, contact=self.contact)
 
     @property
     def bodies(self):
@@ -240,7 +243,7 @@ class HairSimulator:
         return self.solver.kinetic_energy(self)
 
     def energy(self):
-        """Return (kinetic, gravitational, spring) energy (J); articulated model only."""
+        """Return the kinetic, gravitational and spring energies in J; articulated model only."""
         if not isinstance(self.solver, ArticulatedSolver):
             raise ValueError('energy() is defined for the articulated model')
         centres = 0.5 * (self.pos[:, 1:] + self.pos[:, :-1])
@@ -429,7 +432,18 @@ class HairSimulator:
         return True
 
     def _simulate(self, t, h):
-        """One awake step: the shared forces (eqs. 5, 7-11), then the strand model."""
+        """
+        One awake step: the shared forces (eqs. 5, 7-11), then the strand model.
+
+        A model may ask for the step to be split (the articulated chain does when a segment
+        would turn too far in one step); every substep recomputes the forces.
+        """
+        n = self.solver.substeps_for(h)
+        for k in range(n):
+            self._substep(t - h + (k + 1) * h / n, h / n)
+        self.counters['substeps'] += n
+
+    def _substep(self, t, h):
         p = self.params
         c = self.counters
         head = self.head_kinematics
@@ -472,6 +486,7 @@ class HairSimulator:
             forces,
         )
         c['kernel_calls'] += 1
+        self.contact[:, :, :2] = 0.0
         if p.collisions:
             c['contacts'] += F.reaction_constraint_forces(
                 strands,

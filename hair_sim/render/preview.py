@@ -1,11 +1,11 @@
 """Pictures of the hair with the ray caster: textured U-shape strips over a shaded head."""
 
-import os
-import tempfile
+import io
 
 import numpy as np
 from PIL import Image
 
+from hair_sim.fileio import write_atomic
 from hair_sim.render.mesh import HairRenderer
 from hair_sim.render.raster import Camera
 from hair_sim.render.texture import texture_rgba
@@ -72,10 +72,6 @@ def views_png(sim, path, size=300):
         rows.append(np.concatenate([shade(mesh, spheres, Camera(e, target, 32, size, size),
                                           tex) for e in eyes], axis=1))
     img = (np.concatenate(rows, axis=0) * 255 + 0.5).astype(np.uint8)
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=directory, suffix='.png')
-    os.close(fd)
-    Image.fromarray(img).save(tmp)
-    os.chmod(tmp, 0o644)
-    os.replace(tmp, path)
-    return path
+    buf = io.BytesIO()
+    Image.fromarray(img).save(buf, format='PNG')
+    return write_atomic(path, buf.getvalue())

@@ -176,7 +176,8 @@ class HairSimNode(Node):
         return self.get_parameter(name).value
 
     def _rates(self, overrides=None):
-        v = dict(sim_rate=self._p('sim_rate'), publish_rate=self._p('publish_rate'))
+        v = dict(sim_rate=self._p('sim_rate'), publish_rate=self._p('publish_rate'),
+                 model=self._p(PHYSICS + 'model'))
         v.update(overrides or {})
         return v
 
@@ -222,7 +223,7 @@ class HairSimNode(Node):
             default = self._specs[name][0]
             if isinstance(value, float) and not math.isfinite(value):
                 return self._param_refused('%s must be finite' % name)
-            if isinstance(default, str) and name not in ('hairstyle', 'meshcat.zmq_url') \
+            if isinstance(default, str) and name.endswith('frame') \
                     and value and not fields._FRAME.match(value):
                 return self._param_refused('%s %r is not a valid frame name' % (name, value))
         if 'viewpoint' in new:
@@ -243,6 +244,7 @@ class HairSimNode(Node):
             return self._param_refused('meshcat.zmq_url must be empty or tcp://host:port')
         physics = {k[len(PHYSICS):]: v for k, v in new.items() if k.startswith(PHYSICS)}
         rates = self._rates({k: new[k] for k in ('sim_rate', 'publish_rate') if k in new})
+        rates['model'] = physics.get('model', rates['model'])
         try:
             physics_new = PhysicsParams().replaced(**dict(self._physics_params(), **physics))
         except ValueError as exc:
@@ -259,7 +261,7 @@ class HairSimNode(Node):
             problem = stability_problem(physics_new, lengths, 1.0 / rates['sim_rate'])
             if problem:
                 return self._param_refused('hairstyle %s: %s' % (style.name, problem))
-        elif 'sim_rate' in new or 'publish_rate' in new:
+        elif 'sim_rate' in new or 'publish_rate' in new or 'model' in physics:
             why = budget_problem(self.sim.style, **rates)
             if why:
                 return self._param_refused(why)

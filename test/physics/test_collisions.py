@@ -66,7 +66,8 @@ def test_reaction_constraint_removes_inward_force_and_pushes_out():
     bodies = forces.Bodies(spheres=spheres, sphere_vel=np.zeros((1, 3)),
                            masks=np.array([1], dtype=np.int64))
     n = forces.reaction_constraint_forces(strands, bodies, 2.0, 0.5,
-                                          forces.Forces(f_dist=f_dist, f_end=f_end))
+                                          forces.Forces(f_dist=f_dist, f_end=f_end,
+                                                        contact=np.zeros((1, 1, 6))))
     assert n == 1
     np.testing.assert_allclose(f_dist[0, 0], [0.3, 0.0, 0.0])      # eq. 7: tangential kept
     k, c = 2.0 * 0.101, 0.5 * 0.101

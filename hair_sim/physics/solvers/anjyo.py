@@ -352,7 +352,7 @@ class AnjyoSolver:
             sim.modeled_dir, sim.mass, sim.length, self.k_hinge, p))
 
     def state(self):
-        """Return the kernels' view of the state (arrays shared, not copied)."""
+        """Return the kernels' view of the arrays, shared and not copied."""
         return AnjyoState(theta=self.theta, phi=self.phi, theta_prev=self.theta_prev,
                           phi_prev=self.phi_prev, chart=self.chart, rest_dir=self.rest_dir,
                           inv_inertia=self.inv_inertia, k_hinge=self.k_hinge)
@@ -384,6 +384,10 @@ class AnjyoSolver:
     def velocities(self, sim, h_prev):
         """Fill sim.vel from the last step's displacement."""
         finite_difference_velocities(sim.pos, sim.pos_prev, h_prev, sim.vel)
+
+    def substeps_for(self, h):
+        """Return 1: the model takes every step whole (MAX_TURN clamps a step's turn)."""
+        return 1
 
     def step(self, sim, h, R, roots):
         """Advance eqs. 1-6 by h with the forces in sim.forces; return segments updated."""

@@ -54,9 +54,13 @@ from math import acos, cos, sin, sqrt
 from numba import njit
 import numpy as np
 
-from hair_sim.physics.forces import GUARD_MOVES, guard_segment, MAX_RATE
+from hair_sim.physics.forces import (CONTACT_C, CONTACT_K, CONTACT_LEVER, CONTACT_NX,
+                                     CONTACT_NY, CONTACT_NZ, GUARD_MOVES, guard_segment,
+                                     MAX_RATE)
 
-GAMMA = 0.3                  # weight of the implicit spring increment (>= 1/4: stable)
+# weight of the implicit spring increment: >= 1/4 is stable for a still base; a stiff root
+# joint driven by a turning head grew at 0.3 (measured, 1/60 s) and holds at 0.5
+GAMMA = 0.5
 UNRESOLVED_DAMPING = 0.5     # share of a step's spring increment that damps unresolved modes
 MAX_REST_TURN = 1.0          # rad: the sag-free rest turn is capped (too soft to hold)
 MAX_STEP_ROTATION = 0.1      # rad a segment may turn in one (sub)step
@@ -168,7 +172,7 @@ def _orthonormalize(R):
 
 @njit(cache=True)
 def spring_error(Rp, rest_rel, Ri, out, scratch):
-    """e with Ri = Rp rest_rel Exp(e): the joint's deviation from rest, in the child frame."""
+    """Write e with Ri = Rp rest_rel Exp(e): the deviation of the joint from rest (child frame)."""
     # scratch = rest_rel^T Rp^T Ri
     for a in range(3):
         for b in range(3):
@@ -208,7 +212,7 @@ def step_chains(state,
     i_ax = state.inertia_axial
     pos, pos_prev, vel, length, mass = (strands.pos, strands.pos_prev, strands.vel,
                                         strands.length, strands.mass)
-    f_dist, f_end = forces.f_dist, forces.f_end
+    f_dist, f_end, contact = forces.f_dist, forces.f_end, forces.contact
     spheres, masks = bodies.spheres, bodies.masks
     n_s, n_seg = length.shape
     # per-chain scratch (reused for every strand)
@@ -233,6 +237,8 @@ def step_chains(state,
     D = np.zeros((3, 3))
     e = np.zeros(3)
     r = np.zeros(3)
+    rc = np.zeros(3)
+    nrm = np.zeros(3)
     av = np.zeros(3)
     w = np.zeros(3)
     t3 = np.zeros(3)
@@ -282,6 +288,26 @@ def step_chains(state,
                 for b in range(3):
                     B[a, b] *= m
                     M[a, b] = m if a == b else 0.0
+            # A contact (eqs. 7-10, applied explicitly as a force) is stiff for a light
+            # segment: its linearisation, F = -(k, c) n n^T (x, v) at the contact point,
+            # is taken implicitly as an added mass (GAMMA h^2 k + h c) n n^T there, so
+            # every joint up to the root feels it (the implicit damping of the articulated
+            # body; cf. the joints' own springs).
+            kc = contact[s, i, CONTACT_K]
+            cc = contact[s, i, CONTACT_C]
+            if kc + cc > 0.0:
+                lv = contact[s, i, CONTACT_LEVER] * seg
+                nrm[0], nrm[1], nrm[2] = contact[s, i, CONTACT_NX], contact[s, i, CONTACT_NY], \
+                    contact[s, i, CONTACT_NZ]
+                cw = GAMMA * h * h * kc + h * cc
+                rc[0], rc[1], rc[2] = lv * dx, lv * dy, lv * dz
+                _cross(rc, nrm, t4)                      # r x n
+                for a in range(3):
+                    for b in range(3):
+                        # J += -[r] Mc [r] = cw (r x n)(r x n)^T; B += [r] Mc; M += Mc
+                        J[a, b] += cw * t4[a] * t4[b]
+                        B[a, b] += cw * t4[a] * nrm[b]
+                        M[a, b] += cw * nrm[a] * nrm[b]
             # velocity-product bias: N_b = w x I_c w + m r x (w x (w x r)), F_b = m w x (w x r)
             wx, wy, wz = wm[i, 0], wm[i, 1], wm[i, 2]
             w[0], w[1], w[2] = wx, wy, wz
@@ -636,7 +662,6 @@ class ArticulatedSolver:
         self.R = np.zeros((n_s, n_seg, 3, 3))
         self.omega = np.zeros((n_s, n_seg, 3))
         self.alpha = np.zeros((n_s, n_seg, 3))
-        self.substeps = 0
         # the modeled frames, twist-free from the head frame (head upright)
         self.modeled = frames_along(sim.modeled_dir, np.broadcast_to(np.eye(3), (n_s, 3, 3)))
         self.update_material(sim)
@@ -660,15 +685,16 @@ class ArticulatedSolver:
         self.rest_rel = np.ascontiguousarray(rest)
 
     def state(self):
-        """Return the kernel's view of the state (arrays shared, not copied)."""
+        """Return the kernel's view of the arrays, shared and not copied."""
         return ChainState(R=self.R, omega=self.omega, alpha=self.alpha, rest_rel=self.rest_rel,
                           k=self.k,
                           d=self.d, inertia_axial=self.inertia_axial)
 
     def place(self, sim, world_dir):
         """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""
-        R_head = sim.head_pose[0]
-        first = np.broadcast_to(R_head, (world_dir.shape[0], 3, 3))
+        # from the modeled root frame under the head, so the root joint is not twisted (a
+        # turn from the head's own axes would be ill-defined for a strand hanging down)
+        first = sim.head_pose[0] @ self.modeled[:, 0]
         self.R[:] = frames_along(world_dir, first)
         self.hold()
 
@@ -690,35 +716,33 @@ class ArticulatedSolver:
     def velocities(self, sim, h_prev):
         """sim.vel is exact already (the last step wrote it)."""
 
-    def step(self, sim, h, R, roots):
+    def substeps_for(self, h):
         """
-        Advance every chain by h with the forces in sim.forces; return segments updated.
+        Return how many substeps a step of h needs (the simulator recomputes the forces).
 
-        A step turns no segment by more than MAX_STEP_ROTATION: when the fastest segment
-        would, the step is split into equal substeps (the forces held), so a whipping tip
+        A (sub)step turns no segment by more than MAX_STEP_ROTATION, so a whipping tip
         (tens of rad/s) costs a few substeps instead of stability.
         """
         d = self.R[..., :, 2]
         swing = self.omega - (self.omega * d).sum(-1, keepdims=True) * d   # twist moves nothing
         fastest = float(np.sqrt((swing * swing).sum(-1)).max()) if swing.size else 0.0
-        n = max(1, min(MAX_SUBSTEPS, int(np.ceil(h * fastest / MAX_STEP_ROTATION))))
-        done = 0
-        for _ in range(n):
-            done += step_chains(
-                self.state(),
-                sim.strands,
-                sim.forces,
-                sim.head_kinematics,
-                roots,
-                sim.root_vel,
-                sim.root_acc,
-                sim.bodies,
-                sim.params.collisions,
-                h / n,
-                sim.stats,
-            )
-        self.substeps += n
-        return done
+        return max(1, min(MAX_SUBSTEPS, int(np.ceil(h * fastest / MAX_STEP_ROTATION))))
+
+    def step(self, sim, h, R, roots):
+        """Advance every chain by h with the forces in sim.forces; return segments updated."""
+        return step_chains(
+            self.state(),
+            sim.strands,
+            sim.forces,
+            sim.head_kinematics,
+            roots,
+            sim.root_vel,
+            sim.root_acc,
+            sim.bodies,
+            sim.params.collisions,
+            h,
+            sim.stats,
+        )
 
     def kinetic_energy(self, sim):
         """Return the exact kinetic energy (J): translation of the centres and rotation."""
@@ -749,9 +773,9 @@ class ArticulatedSolver:
         """
         Return why params would be unstable at dt for these segment lengths, or None.
 
-        The joint springs are implicit; what stays explicit is gravity's tension (the
-        weight of everything beyond a joint, acting with the segment's lever), the
-        inter-strip and collision springs at the segment's end, and air damping. Each acts
+        The joint springs and contacts are implicit; what stays explicit is gravity's
+        tension (the weight of everything beyond a joint, acting with the segment's lever),
+        the inter-strip springs at the segment's end, and air damping. Each acts
         against the segment's inertia plus the implicit spring and damper's share.
         """
         mass = params.linear_density * length
@@ -764,8 +788,7 @@ class ArticulatedSolver:
         if params.inter_strip:
             springs += params.neighbor_stiffness + params.wall_stiffness + \
                 params.scalp_stiffness
-        if params.collisions:
-            springs += params.collision_stiffness
+        # (contacts are taken implicitly)
         explicit = (beyond * params.gravity * length + springs * length ** 3) / inertia
         if params.air_damping * dt > 2.0 * margin:
             return ('air_damping %g/s needs dt below %.2g s'

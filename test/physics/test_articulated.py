@@ -1,0 +1,213 @@
+"""
+The articulated strand model against closed forms and independent solutions.
+
+Every reference here is computed without hair_sim: the physical pendulum's exact period
+(complete elliptic integral), the linearised n-link hanging chain's eigenvalues (scipy),
+the Hencky bar-chain's static deflection (a fixed point of its own equilibrium), and the
+energy a conservative system keeps.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.linalg import eigh
+from scipy.special import ellipk
+
+from hair_sim import DEFAULT_DT, HairSimulator, load_head, paths
+from hair_sim.bench import hanging
+
+GRAVITY = 9.81
+
+
+@pytest.fixture(scope='module')
+def head():
+    return load_head(paths.shipped_head('default_adult'))
+
+
+def _chain(head, directions, length, **params):
+    """Return a simulator of one strand of straight segments, rooted far from the head."""
+    n = len(directions)
+    root = np.array([0.0, 0.0, 1.0])
+    pts = [root]
+    for d in directions:
+        pts.append(pts[-1] + length / n * np.asarray(d, dtype=float))
+    values = dict(model='articulated', damping=0.0, air_damping=0.0, collisions=False,
+                  inter_strip=False, gravity_compensation=False, sleep_tolerance=0.0,
+                  drag_coefficient=0.0, gravity=GRAVITY)
+    values.update(params)
+    sim = HairSimulator.from_strands(np.array([pts]), head, **values)
+    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+    return sim
+
+
+def _crossing_times(values, times):
+    up = np.flatnonzero((values[:-1] < 0) & (values[1:] >= 0))
+    return times[up] - values[up] * (times[up + 1] - times[up]) / (values[up + 1] - values[up])
+
+
+@pytest.mark.parametrize('amplitude', [0.05, 0.5, 1.5])
+def test_pendulum_period_is_the_exact_physical_pendulum(head, amplitude):
+    """One rod on a free ball joint: T = 4 sqrt(I / (m g L/2)) K(sin(a/2)), within 0.5 %."""
+    length = 0.1
+    sim = _chain(head, [[0.0, 0.0, -1.0]], length, youngs_modulus=1e6, stiffness_scale=0.05,
+                 root_stiffness_scale=0.0)                  # a free ball joint
+    sim.set_directions([[[math.sin(amplitude), 0.0, -math.cos(amplitude)]]])
+    xs, ts = [], []
+    for _ in range(int(2.0 / DEFAULT_DT)):
+        sim.step(DEFAULT_DT)
+        xs.append(sim.pos[0, 1, 0] - sim.pos[0, 0, 0])
+        ts.append(sim.time)
+    measured = np.diff(_crossing_times(np.array(xs), np.array(ts))).mean()
+    m = sim.mass[0, 0]
+    inertia = m * length ** 2 / 3.0
+    exact = 4.0 * math.sqrt(inertia / (m * GRAVITY * length / 2.0)) * \
+        ellipk(math.sin(amplitude / 2.0) ** 2)
+    assert abs(measured - exact) / exact < 0.005, (measured, exact)
+
+
+def _chain_modes(n, length, mass, k, k_root):
+    """Linearised n-link chain hanging under gravity: (omega (n,), mode shapes (n, n))."""
+    seg = length / n
+    m = mass / n
+    lever = np.tril(np.full((n, n), seg), -1) + np.eye(n) * seg / 2.0
+    M = m * lever.T @ lever + np.eye(n) * m * seg * seg / 12.0
+    beyond = m * (n - np.arange(n) - 0.5)           # mass below each joint, to its rod centre
+    K = np.diag(GRAVITY * seg * beyond)
+    D = np.eye(n) - np.eye(n, k=-1)
+    stiff = np.full(n, k)
+    stiff[0] = k_root
+    K = K + D.T @ np.diag(stiff) @ D
+    w2, V = eigh(K, M)
+    return np.sqrt(w2), V
+
+
+@pytest.mark.parametrize('n', [5, 10])
+@pytest.mark.parametrize('mode', [0, 1, 2])
+def test_hanging_chain_modes_match_linearised_eigenvalues(head, n, mode):
+    """First three modes of a nearly limp chain, within 1 % of scipy's eigenvalues."""
+    length = 0.3
+    sim = _chain(head, [[0.0, 0.0, -1.0]] * n, length, youngs_modulus=1e6,
+                 stiffness_scale=0.05)
+    p = sim.params
+    k = p.bending_stiffness / (length / n)
+    omega, V = _chain_modes(n, length, float(sim.mass[0].sum()), k, k * p.root_stiffness_scale)
+    shape = 0.01 * V[:, mode] / np.abs(V[:, mode]).max()
+    sim.set_directions([np.stack([np.sin(shape), np.zeros(n), -np.cos(shape)], axis=1)])
+    q, ts = [], []
+    for _ in range(int((8 * 2 * math.pi / omega[mode]) / DEFAULT_DT)):
+        sim.step(DEFAULT_DT)
+        d = np.diff(sim.pos[0], axis=0)
+        q.append(np.arctan2(d[:, 0], -d[:, 2]) @ V[:, mode])
+        ts.append(sim.time)
+    measured = 2 * math.pi / np.diff(_crossing_times(np.array(q), np.array(ts))).mean()
+    assert abs(measured - omega[mode]) / omega[mode] < 0.01, (measured, omega[mode])
+
+
+def test_chain_reference_tends_to_the_continuum():
+    """The reference itself: the n-link chain's modes approach (j0n / 2) sqrt(g / L)."""
+    continuum = np.array([6.876, 15.78, 24.74])
+    omega, _ = _chain_modes(200, 0.3, 3e-5, 0.0, 0.0)
+    assert np.all(np.abs(omega[:3] - continuum) / continuum < 0.005), omega[:3]
+
+
+def _hencky_tip_drop(n, length, mass, k, k_root):
+    """Return the static tip drop of a horizontal bar chain under its weight (exact)."""
+    seg, m = length / n, mass / n
+    stiff = np.full(n, k)
+    stiff[0] = k_root
+    phi = np.zeros(n)                                 # each rod's angle below horizontal
+    for _ in range(10000):
+        x = np.concatenate([[0.0], np.cumsum(seg * np.cos(phi))])
+        centres = 0.5 * (x[1:] + x[:-1])
+        moment = np.array([m * GRAVITY * (centres[j:] - x[j]).sum() for j in range(n)])
+        new = np.cumsum(moment / stiff)
+        if np.max(np.abs(new - phi)) < 1e-15:
+            break
+        phi = new
+    return float((seg * np.sin(phi)).sum())
+
+
+@pytest.mark.parametrize('n', [4, 8, 16])
+def test_cantilever_matches_hencky_bar_chain(head, n):
+    """A stiff horizontal strand settles at the bar chain's deflection (rel. error 1e-6)."""
+    length = 0.05
+    sim = _chain(head, [[1.0, 0.0, 0.0]] * n, length, damping=200.0, stiffness_scale=100.0,
+                 youngs_modulus=2e10, root_stiffness_scale=1e9)
+    for _ in range(int(4.0 / DEFAULT_DT)):
+        sim.step(DEFAULT_DT)
+    drop = sim.pos[0, 0, 2] - sim.pos[0, -1, 2]
+    p = sim.params
+    k = p.bending_stiffness / (length / n)
+    expected = _hencky_tip_drop(n, length, float(sim.mass[0].sum()), k,
+                                k * p.root_stiffness_scale)
+    assert abs(drop - expected) / expected < 1e-6, (drop, expected)
+
+
+def test_bar_chain_reference_tends_to_euler_bernoulli():
+    """The reference itself: the bar chain's tip drop tends to w L^4 / (8 EI), first order."""
+    length, mass, ei = 0.05, 1e-4, 1e-4          # a tip drop of 0.3 % of L: linear
+    euler = mass / length * GRAVITY * length ** 4 / 8.0 / ei
+    errors = [abs(_hencky_tip_drop(n, length, mass, ei * n / length, 1e9 * ei * n / length)
+                  - euler) / euler for n in (16, 32, 64, 128)]
+    assert all(b < 0.6 * a for a, b in zip(errors, errors[1:])), errors
+    assert errors[-1] < 0.02, errors
+
+
+def _energy_series(head, damping, seconds=10.0):
+    """Return (total energy after each step, the energy of the same strand hanging still)."""
+    n = 10
+    shape = 0.5 * np.sin(np.linspace(0.3, 2.0, n))
+    sim = _chain(head, [[0.0, 0.0, -1.0]] * n, 0.3, damping=damping)
+    still = sum(sim.energy())
+    sim.set_directions([np.stack([np.sin(shape), 0.3 * np.sin(shape), -np.cos(shape)], 1)])
+    out = []
+    for _ in range(int(seconds / DEFAULT_DT)):
+        sim.step(DEFAULT_DT)
+        out.append(sum(sim.energy()))
+    return np.array(out), still
+
+
+def test_energy_is_kept_without_damping(head):
+    """Undamped, no contact: total energy stays within 1 % of the swing's energy for 10 s."""
+    e, still = _energy_series(head, 0.0)
+    drift = np.abs(e - e[0]).max()
+    assert drift < 0.01 * (e[0] - still), (drift, e[0] - still)
+
+
+def test_energy_only_decreases_with_damping(head):
+    """Damped: the energy falls (up to the integrator's per-step wobble) and ends lower."""
+    e, _ = _energy_series(head, 2.0, 3.0)
+    rise = np.maximum(0.0, np.diff(e)).max()
+    assert rise < 1e-3 * (e[0] - e[-1]), rise
+    assert e[-1] < e[0]
+
+
+def test_reruns_are_bit_identical():
+    """The same inputs give the same bytes."""
+    def run():
+        sim = HairSimulator.from_strands(hanging.rest_strands(12, 6), hanging.head_model(),
+                                         **hanging.scene_params('articulated'))
+        for i in range(60):
+            yaw = 0.5 * math.sin(i / 10.0)
+            sim.set_head_pose(i / 60.0, [0, 0, 0], [0, 0, math.sin(yaw / 2), math.cos(yaw / 2)])
+            sim.step(1 / 60)
+        return sim.pos.copy()
+    assert run().tobytes() == run().tobytes()
+
+
+@pytest.mark.parametrize('dt', [1 / 60, 1 / 240])
+def test_hanging_scene_drapes_and_stays_outside(dt):
+    """The issue's hanging scene (20 x 10): strands fall over the head, never inside it."""
+    sim = HairSimulator.from_strands(hanging.rest_strands(20, 10), hanging.head_model(),
+                                     **hanging.scene_params('articulated'))
+    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+    deepest = np.inf
+    for _ in range(int(2.0 / dt)):
+        sim.step(dt)
+        deepest = min(deepest, float(np.linalg.norm(sim.pos, axis=2).min()))
+    assert np.all(np.isfinite(sim.pos))
+    assert deepest > hanging.RADIUS - 1e-3
+    # mostly hanging: every tip is below its root (they started pointing up and out)
+    assert np.all(sim.pos[:, -1, 2] < sim.pos[:, 0, 2])
+    assert sim.pos[:, -1, 2].mean() < -0.1
