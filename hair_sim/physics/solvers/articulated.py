@@ -26,26 +26,33 @@ between joints are pure translations along the rods):
 - forward (root to tip): joint accelerations q'' = D^-1 (u - U^T a_parent) from the head's
   own motion (the base motion: its angular acceleration and the root's acceleration),
   so a head turn's lag comes out of the dynamics, not from an added force;
-- semi-implicit Euler on SO(3): omega += h alpha, R <- Exp(h omega) R.
+- the drift on SO(3): R <- Exp(h omega) R, in two parts around the kick (below).
 
 The spring is taken as -k (e + GAMMA h (omega_rel+ - delta omega_rel)): for a linear spring
 with symplectic Euler the step's determinant is (1 + delta b) / (1 + GAMMA b), b = h^2 k / I,
-and it is stable for any stiffness when GAMMA >= 1/4. delta = GAMMA (1 - UNRESOLVED_DAMPING
-(b / (1 + b))^4): modes the step resolves (b << 1) keep their energy (tested), while modes
-it cannot resolve (b >> 1) lose about half of it every step instead of ringing on.
+and it is stable for any stiffness when GAMMA >= 1/4 and the base is still. A stiff root
+joint driven by a turning head still grew at GAMMA = 0.3 (measured at 1/60 s); 0.5 holds.
+delta = GAMMA (1 - UNRESOLVED_DAMPING (b / (1 + b))^4): modes the step resolves (b << 1)
+keep their energy (tested), while modes it cannot resolve (b >> 1) lose about half of it
+every step instead of ringing on.
 
-The step is Stormer-Verlet in position form: half a drift, the articulated-body pass at the
-mid-step configuration, a kick, the other half drift (second order; energy drifts a
-fraction of a percent over 10 s at 1/240 s, tested). The velocity-product terms use the
-angular velocities predicted at mid-step from the last accelerations, a prediction that
-fades out where a joint's spring is too stiff for the step (b >> 1). Gravity, contacts and
-the inter-strip springs stay explicit: `stability_problem` says when a setting needs a
-smaller step; a step that would turn a segment by more than MAX_STEP_ROTATION is split.
+The step is Stormer-Verlet in position form: part of the drift, the articulated-body pass
+at the mid-step configuration, a kick, the rest of the drift (second order; the energy of
+an undamped swinging strand stays within 0.3 % over 10 s at the default dt, tested). A
+joint too stiff for the step takes its force at the start instead (the share theta of the
+drift before the kick fades from 1/2 to 0 as b grows). The velocity-product terms use the
+angular velocities predicted at mid-step from the last accelerations. Gravity and the
+inter-strip springs stay explicit: `stability_problem` says when a setting needs a smaller
+step. Contacts (eqs. 7-10, shared with the thesis model) act as forces whose stiffness and
+damping are also folded into the articulated inertia, as an added mass at the contact
+point; the position guard then turns a rod out of a sphere, positions only. A step that
+would turn a segment by more than MAX_STEP_ROTATION is split by the simulator, which
+recomputes the forces for every substep.
 
 Rest shape (sag-free): one recursive Newton-Euler pass at the modeled pose (head upright,
 at rest, full distal loads; Hsu et al. 2023, Derouet-Jourdan et al. 2013) gives each
-joint the torque that holds everything beyond it; the joint's rest rotation is turned so
-that its spring supplies exactly that, and the modeled style is the equilibrium.
+joint the torque that holds everything beyond it; the joint's spring gets an offset e0
+that supplies exactly that, torque -k R (e - e0), and the modeled style is the equilibrium.
 """
 
 from collections import namedtuple
@@ -62,12 +69,12 @@ from hair_sim.physics.forces import (CONTACT_C, CONTACT_K, CONTACT_LEVER, CONTAC
 # joint driven by a turning head grew at 0.3 (measured, 1/60 s) and holds at 0.5
 GAMMA = 0.5
 UNRESOLVED_DAMPING = 0.5     # share of a step's spring increment that damps unresolved modes
-MAX_REST_TURN = 1.0          # rad: the sag-free rest turn is capped (too soft to hold)
 MAX_STEP_ROTATION = 0.1      # rad a segment may turn in one (sub)step
 MAX_SUBSTEPS = 16
 
 ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', 'd',
-                                       'inertia_axial'])
+                                       'inertia_axial',
+                                       'offset'])
 
 
 # ------------------------------------------------------------------ 3x3 helpers
@@ -204,10 +211,11 @@ def step_chains(state,
 
     Reads the shared per-segment forces (world), the head's motion (base of every chain),
     writes the new orientations, angular velocities, vertices and vertex velocities. The
-    position guard turns a segment out of a sphere and removes the inward part of its end's
-    velocity. Returns the segments updated.
+    position guard turns a segment out of a sphere (positions only). Returns the segments
+    updated.
     """
     R, omega, rest_rel, kj, dj = state.R, state.omega, state.rest_rel, state.k, state.d
+    offset = state.offset
     alpha_prev = state.alpha
     i_ax = state.inertia_axial
     pos, pos_prev, vel, length, mass = (strands.pos, strands.pos_prev, strands.vel,
@@ -348,6 +356,9 @@ def step_chains(state,
             # ball joint i: spring and damper on the relative rotation, implicit part c
             Rp = Rh if i == 0 else R[s, i - 1]
             spring_error(Rp, rest_rel[s, i], R[s, i], e, Q)
+            e[0] -= offset[s, i, 0]             # the sag-free preload (zero without gravity
+            e[1] -= offset[s, i, 1]             # compensation)
+            e[2] -= offset[s, i, 2]
             k = kj[s, i]
             dd = dj[s, i]
             # the implicit spring and damper work from the start-of-step velocities
@@ -516,29 +527,10 @@ def step_chains(state,
                             for b in range(3):
                                 Rnew[a, b] = Q[a, b]
                         _orthonormalize(Rnew)
-                    # stop the end's motion into the sphere: the correction points outwards
-                    cx, cy, cz = gx - ex, gy - ey, gz - ez
-                    cn = sqrt(cx * cx + cy * cy + cz * cz)
-                    if cn > 1e-15:
-                        cx, cy, cz = cx / cn, cy / cn, cz / cn
-                        bx, by, bz = seg * Rnew[0, 2], seg * Rnew[1, 2], seg * Rnew[2, 2]
-                        # the end's velocity relative to the start: (w - w_parent) x b
-                        if i == 0:
-                            qx, qy, qz = wx - head.w[0], wy - head.w[1], wz - head.w[2]
-                        else:
-                            qx, qy, qz = wx - omega[s, i - 1, 0], wy - omega[s, i - 1, 1], \
-                                wz - omega[s, i - 1, 2]
-                        vrn = (qy * bz - qz * by) * cx + (qz * bx - qx * bz) * cy + \
-                            (qx * by - qy * bx) * cz
-                        if vrn < 0.0:
-                            # dw = s (b x c) / |b x c|^2 makes (dw x b) . c = s
-                            kx, ky, kz = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx
-                            kk = kx * kx + ky * ky + kz * kz
-                            if kk > 1e-18:
-                                f = -vrn / kk
-                                wx += f * kx
-                                wy += f * ky
-                                wz += f * kz
+                    # positions only: the rod's angular velocity is left alone. Changing it
+                    # to stop the end's inward motion moves every vertex beyond with it and
+                    # pumped energy into draped strands (hanging scene: tips 19 mm RMS from
+                    # MuJoCo, never still); the contact's implicit damping takes the velocity.
                     ex, ey, ez = gx, gy, gz
                     guards += 1
             for a in range(3):
@@ -610,25 +602,15 @@ def minimal_rotation(a, b):
     return R
 
 
-def rotvec_to_matrix(v):
-    """Exp of rotation vectors (..., 3) as matrices (..., 3, 3)."""
-    v = np.asarray(v, dtype=np.float64)
-    out = np.empty(v.shape[:-1] + (3, 3))
-    flat_v = v.reshape(-1, 3)
-    flat = out.reshape(-1, 3, 3)
-    for k in range(len(flat_v)):
-        exp_so3(flat_v[k, 0], flat_v[k, 1], flat_v[k, 2], flat[k])
-    return out
-
-
-def sag_free_rest(frames, length, mass, k, gravity):
+def sag_free_offsets(frames, length, mass, k, gravity):
     """
-    Return each joint's rest rotation relative to its parent (n_s, n_seg, 3, 3).
+    Return each joint's spring offset e0 (n_s, n_seg, 3, child frame) that holds the pose.
 
     frames: the modeled orientations (head frame, head upright). One recursive
     Newton-Euler pass (statics) gives the torque joint i must hold, tau_i = -sum over the
-    segments beyond of (c_j - p_i) x m_j g; the rest rotation is turned so that the spring
-    gives it: -k R e = tau, e = -R^T tau / k (capped at MAX_REST_TURN; no spring, no hold).
+    segments beyond of (c_j - p_i) x m_j g; the spring -k R (e - e0) gives exactly that at
+    the modeled pose (e = 0) with e0 = R^T tau / k. An offset, not a turned rest rotation:
+    a soft joint may need more than half a turn of spring, which a rotation cannot hold.
     """
     n_s, n_seg = length.shape
     d = frames[..., :, 2]
@@ -636,19 +618,14 @@ def sag_free_rest(frames, length, mass, k, gravity):
     joints = np.concatenate([np.zeros((n_s, 1, 3)), np.cumsum(seg, axis=1)], axis=1)
     centres = joints[:, :-1] + 0.5 * seg
     weight = mass[..., None] * np.asarray(gravity, dtype=np.float64)
-    parents = np.concatenate([np.broadcast_to(np.eye(3), (n_s, 1, 3, 3)), frames[:, :-1]],
-                             axis=1)
-    rel = np.swapaxes(parents, -1, -2) @ frames
     # moment of the weights beyond joint i about joint i: sum_j (c_j - p_i) x w_j
     moment_about_origin = np.cumsum(np.cross(centres, weight)[:, ::-1], axis=1)[:, ::-1]
     weight_beyond = np.cumsum(weight[:, ::-1], axis=1)[:, ::-1]
     tau = -(moment_about_origin - np.cross(joints[:, :-1], weight_beyond))
-    e = np.zeros_like(tau)
+    e0 = np.zeros_like(tau)
     held = k > 0
-    e[held] = -np.einsum('nji,nj->ni', frames[held], tau[held]) / k[held][:, None]
-    ang = np.linalg.norm(e, axis=-1, keepdims=True)
-    e *= np.minimum(1.0, MAX_REST_TURN / np.maximum(ang, 1e-300))
-    return rel @ rotvec_to_matrix(-e)
+    e0[held] = np.einsum('nji,nj->ni', frames[held], tau[held]) / k[held][:, None]
+    return e0
 
 
 class ArticulatedSolver:
@@ -674,21 +651,23 @@ class ArticulatedSolver:
         self.k = np.ascontiguousarray(k)
         self.d = np.ascontiguousarray(p.damping * sim.mass * sim.length ** 2 / 3.0)
         self.inertia_axial = np.ascontiguousarray(0.5 * sim.mass * p.bundle_radius ** 2)
+        n_s = len(self.modeled)
+        parents = np.concatenate([np.broadcast_to(np.eye(3), (n_s, 1, 3, 3)),
+                                  self.modeled[:, :-1]], axis=1)
+        rest = np.swapaxes(parents, -1, -2) @ self.modeled
         if p.gravity_compensation:
-            rest = sag_free_rest(self.modeled, sim.length, sim.mass, self.k,
-                                 [0.0, 0.0, -p.gravity])
+            offset = sag_free_offsets(self.modeled, sim.length, sim.mass, self.k,
+                                      [0.0, 0.0, -p.gravity])
         else:
-            n_s = len(self.modeled)
-            parents = np.concatenate([np.broadcast_to(np.eye(3), (n_s, 1, 3, 3)),
-                                      self.modeled[:, :-1]], axis=1)
-            rest = np.swapaxes(parents, -1, -2) @ self.modeled
+            offset = np.zeros(self.modeled.shape[:2] + (3,))
+        self.offset = np.ascontiguousarray(offset)
         self.rest_rel = np.ascontiguousarray(rest)
 
     def state(self):
         """Return the kernel's view of the arrays, shared and not copied."""
         return ChainState(R=self.R, omega=self.omega, alpha=self.alpha, rest_rel=self.rest_rel,
                           k=self.k,
-                          d=self.d, inertia_axial=self.inertia_axial)
+                          d=self.d, inertia_axial=self.inertia_axial, offset=self.offset)
 
     def place(self, sim, world_dir):
         """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""
@@ -765,6 +744,7 @@ class ArticulatedSolver:
             for i in range(self.R.shape[1]):
                 parent = R_head if i == 0 else self.R[s, i - 1]
                 spring_error(parent, self.rest_rel[s, i], self.R[s, i], e, q)
+                e -= self.offset[s, i]
                 total += 0.5 * self.k[s, i] * float(e @ e)
         return total
 
