@@ -195,6 +195,36 @@ def spring_error(Rp, rest_rel, Ri, out, scratch):
 
 # ------------------------------------------------------------------ the chain step
 @njit(cache=True)
+def _spring_offset(e, e0):
+    """
+    Replace e by the spring's generalised deviation J_r(e)^-T (e - e0), in place.
+
+    The spring's energy is k |e - e0|^2 / 2 in the joint's log coordinates; its torque on
+    the child (child frame, right perturbation) is -k J_r(e)^-T (e - e0). Since
+    J_r(e)^-T e = e this is e - J_r(e)^-T e0, with J_r^-T = I - [e]/2 + c [e]^2 and
+    c = 1/t^2 - (1 + cos t) / (2 t sin t), t = |e|. Taking the offset as a plain torque
+    would be a follower load: not conservative, and a large sag-free offset then pumps
+    energy into the chain (measured: a bent, preloaded strand blew up under head motion).
+    """
+    ox, oy, oz = e0[0], e0[1], e0[2]
+    if ox == 0.0 and oy == 0.0 and oz == 0.0:
+        return
+    ex, ey, ez = e[0], e[1], e[2]
+    t2 = ex * ex + ey * ey + ez * ez
+    if t2 < 1e-8:
+        c = 1.0 / 12.0 + t2 / 720.0
+    else:
+        t = sqrt(t2)
+        c = 1.0 / t2 - (1.0 + cos(t)) / (2.0 * t * sin(t))
+    # a = e x e0, b = e x a
+    ax, ay, az = ey * oz - ez * oy, ez * ox - ex * oz, ex * oy - ey * ox
+    bx, by, bz = ey * az - ez * ay, ez * ax - ex * az, ex * ay - ey * ax
+    e[0] = ex - (ox - 0.5 * ax + c * bx)
+    e[1] = ey - (oy - 0.5 * ay + c * by)
+    e[2] = ez - (oz - 0.5 * az + c * bz)
+
+
+@njit(cache=True)
 def step_chains(state,
                 strands,
                 forces,
@@ -356,9 +386,7 @@ def step_chains(state,
             # ball joint i: spring and damper on the relative rotation, implicit part c
             Rp = Rh if i == 0 else R[s, i - 1]
             spring_error(Rp, rest_rel[s, i], R[s, i], e, Q)
-            e[0] -= offset[s, i, 0]             # the sag-free preload (zero without gravity
-            e[1] -= offset[s, i, 1]             # compensation)
-            e[2] -= offset[s, i, 2]
+            _spring_offset(e, offset[s, i])
             k = kj[s, i]
             dd = dj[s, i]
             # the implicit spring and damper work from the start-of-step velocities
