@@ -26,16 +26,10 @@ STRIPS_QUICK = [20, 180]
 
 def meshcat_encode(mesh):
     """Encode the hair as the meshcat sink does (SetObject lowered and packed)."""
-    import meshcat.geometry as g
     from meshcat.commands import SetObject
     import umsgpack
-    from hair_sim.sinks.meshcat_sink import _geometry_classes, node_path
-    _, UVMeshGeometry = _geometry_classes()
-    tex = g.ImageTexture(image=g.PngImage(mesh.texture_png))
-    mat = g.MeshLambertMaterial(map=tex, transparent=True, alphaTest=0.3)
-    cmd = SetObject(g.Mesh(UVMeshGeometry(mesh.vertices, mesh.indices, mesh.uvs), mat),
-                    path=node_path('/hair_sim/hair'))
-    return umsgpack.packb(cmd.lower())
+    from hair_sim.sinks.meshcat_sink import hair_object, node_path
+    return umsgpack.packb(SetObject(hair_object(mesh), path=node_path('/hair_sim/hair')).lower())
 
 
 def median_ms(fn, repeats):

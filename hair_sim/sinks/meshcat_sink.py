@@ -207,27 +207,29 @@ class MeshcatSink:
             path = node_path('/hair_sim/head/sphere_%d' % i)
             client.send(SetObject(obj, path=path))
             client.send(SetTransform(tf.translation_matrix(s[:3]), path))
-        # the camera frames the head: 0.8 m in front, a little to the side and above
-        # (the camera's parent frame is y-up: [x, z, -y] of the world)
-        client.send(SetProperty('position', [0.8, 0.08, 0.22],
+        # the camera: three-quarter from the front, CAMERA_DISTANCE from the head's centre,
+        # a little above; the page's orbit target is the world origin, where _send_frame
+        # keeps the head's centre (the camera's parent frame is y-up: [x, z, -y] of world)
+        x, y, z = CAMERA_DISTANCE * CAMERA_DIRECTION
+        client.send(SetProperty('position', [x, z, -y],
                                 node_path('/Cameras/default/rotated/<object>')))
         for clutter in ('/Grid', '/Axes'):
             client.send(SetProperty('visible', False, node_path(clutter)))
 
     def _send_frame(self, client, mesh, head_pose):
         from meshcat.commands import SetObject, SetTransform
-        g, UVMeshGeometry = _geometry_classes()
         R, p = head_pose
         T = np.eye(4)
         T[:3, :3] = R
         T[:3, 3] = p
         client.send(SetTransform(T, node_path('/hair_sim/head')))
+        # the view follows the head: the scene moves so the head's centre stays at the
+        # orbit target (its turns and nods still show)
+        follow = np.eye(4)
+        follow[:3, 3] = -(p + R @ self.head.scalp[:, :3].mean(axis=0))
+        client.send(SetTransform(follow, node_path('/hair_sim')))
         if len(mesh.indices):
-            tex = g.ImageTexture(image=g.PngImage(mesh.texture_png), wrap=[1001, 1001])
-            mat = g.MeshLambertMaterial(color=0xffffff, map=tex, transparent=True,
-                                        alphaTest=0.3, side=2)
-            geom = UVMeshGeometry(mesh.vertices, mesh.indices, mesh.uvs)
-            client.send(SetObject(g.Mesh(geom, mat), path=node_path('/hair_sim/hair')))
+            client.send(SetObject(hair_object(mesh), path=node_path('/hair_sim/hair')))
         self.frames_sent += 1
 
     def _run(self):
@@ -279,6 +281,24 @@ class MeshcatSink:
         if client is not None:
             client.close()
 
+
+def hair_object(mesh):
+    """
+    Return the meshcat object of a hair mesh: U-shape geometry with the alpha texture.
+
+    The texture's row 0 is the root (v = 0, render/texture.py), as glTF and RViz read a
+    PNG; three.js flips textures by default (flipY), which would put the tips' fade at the
+    roots, so the texture goes with flipY = False.
+    """
+    g, UVMeshGeometry = _geometry_classes()
+    tex = g.ImageTexture(image=g.PngImage(mesh.texture_png), wrap=[1001, 1001], flipY=False)
+    mat = g.MeshLambertMaterial(color=0xffffff, map=tex, transparent=True, alphaTest=0.3,
+                                side=2)
+    return g.Mesh(UVMeshGeometry(mesh.vertices, mesh.indices, mesh.uvs), mat)
+
+
+CAMERA_DISTANCE = 0.45                  # m from the head's centre
+CAMERA_DIRECTION = np.array([0.68, -0.68, 0.27]) / np.linalg.norm([0.68, -0.68, 0.27])
 
 CHROMIUM_FLAGS = ['--headless', '--no-sandbox', '--use-gl=swiftshader',
                   '--enable-unsafe-swiftshader', '--disable-background-networking',

@@ -71,3 +71,45 @@ def test_meshcat_page_shows_head_and_moving_hair(tmp_path):
     a = np.asarray(Image.open(first).convert('RGB')).astype(int)
     b = np.asarray(Image.open(second).convert('RGB')).astype(int)
     assert (np.abs(a - b).sum(axis=2) > 30).sum() > 200       # the hair moves
+
+
+def test_texture_reaches_meshcat_the_right_way_up():
+    """
+    Sample the texture meshcat receives where three.js would: roots opaque, tips faded.
+
+    Root and tip vertices are found by position (next to the strands' first and last
+    vertices), not by their uv, and the row three.js samples follows the flipY the
+    material carries (WebGL's UNPACK_FLIP_Y puts the PNG's first row at v = 1 when set).
+    """
+    import base64
+    import io
+
+    from hair_sim import HairSimulator, load_hairstyle, paths
+    from hair_sim.render.mesh import HairRenderer
+    from hair_sim.sinks.meshcat_sink import hair_object
+
+    sim = HairSimulator(load_hairstyle(paths.shipped_style('thesis_long')))
+    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+    mesh = HairRenderer.for_simulator(sim).mesh_of(sim)
+    lowered = hair_object(mesh).lower()
+    texture = lowered['textures'][0]
+    flip_y = texture.get('flipY', True)                # three.js's default
+    png = texture.get('image') or lowered['images'][0]
+    if isinstance(png, str):                            # an image uuid: look it up
+        png = next(i for i in lowered['images'] if i['uuid'] == png)
+    data = base64.b64decode(png['url'].split(',', 1)[1])
+    alpha = np.asarray(Image.open(io.BytesIO(data)).convert('RGBA'))[..., 3].astype(float)
+    rows = alpha.shape[0]
+
+    def sampled_alpha(points):
+        d = np.linalg.norm(mesh.vertices[:, None, :] - points[None, :, :].astype(np.float32),
+                           axis=2).min(axis=1)
+        near = d < 2e-3
+        assert near.sum() >= 10
+        v = mesh.uvs[near, 1].astype(float)
+        row = np.clip(((1.0 - v) if flip_y else v) * rows, 0, rows - 1).astype(int)
+        return alpha[row].mean()
+
+    at_roots = sampled_alpha(sim.pos[:, 0])
+    at_tips = sampled_alpha(sim.pos[:, -1])
+    assert at_roots > at_tips + 50, (at_roots, at_tips)
