@@ -12,8 +12,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, paths  # noqa: E402
-from hair_sim.modeling.preview import render_png  # noqa: E402
-from hair_sim.render.preview import views_png  # noqa: E402
+from hair_sim.modeling.strips_over_head import render_png  # noqa: E402
+from hair_sim.render.raycast_views import views_png  # noqa: E402
 from hair_sim.sinks.meshcat_sink import screenshot  # noqa: E402
 
 

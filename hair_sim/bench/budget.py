@@ -10,11 +10,9 @@ the constants in hair_sim/budget.py, and the vertices one core runs at the defau
 
 import numpy as np
 
-from hair_sim import budget, load_hairstyle, paths
+from hair_sim import budget
 from hair_sim.bench.common import progress
-from hair_sim.bench.scale import meshcat_encode, median_ms
-from hair_sim.bench.scenarios import demo
-from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator
+from hair_sim.bench.scale import demo_scene, meshcat_encode, median_ms
 from hair_sim.render.mesh import HairRenderer
 from hair_sim.sinks.markers import MarkerEncoder, MarkerLayout
 from hair_sim.sinks.mesh_msg import hair_mesh_cdr, hair_state_cdr
@@ -25,19 +23,7 @@ MESHCAT_SHARE = 20.0 / 30.0    # meshcat.rate / publish_rate (shipped)
 
 def measure(n_strips, model, repeats):
     """Return (simulated, drawn vertices, s per solver step, s per published frame)."""
-    style = load_hairstyle(paths.shipped_style('thesis_long')).with_strip_count(n_strips)
-    params = {} if model == 'anjyo' else {'model': model}
-    sim = HairSimulator(style, **params)
-    sim.set_head_pose(0.0, *demo(0.0))
-    sim.set_wind([2.0, 0.5, 0.0], turbulence=0.3, seed=2)
-    clock = [0.0]
-
-    def step():
-        clock[0] += DEFAULT_DT
-        sim.set_head_pose(clock[0], *demo(clock[0]))
-        sim.step(DEFAULT_DT)
-    for _ in range(20):
-        step()
+    sim, step = demo_scene(n_strips, model)
     step_ms = median_ms(step, repeats * 4)
     renderer = HairRenderer.for_simulator(sim)
     R, p = sim.head_pose

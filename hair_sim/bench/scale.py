@@ -43,10 +43,10 @@ def median_ms(fn, repeats):
     return 1e3 * float(np.median(times))
 
 
-def row(n_strips, repeats):
-    """Measure one style size."""
+def demo_scene(n_strips, model='anjyo'):
+    """Return (simulator, step) of thesis_long with n_strips under the demo's head and wind."""
     style = load_hairstyle(paths.shipped_style('thesis_long')).with_strip_count(n_strips)
-    sim = HairSimulator(style)
+    sim = HairSimulator(style, model=model)
     sim.set_head_pose(0.0, *demo(0.0))
     sim.set_wind([2.0, 0.5, 0.0], turbulence=0.3, seed=2)
     clock = [0.0]
@@ -58,6 +58,12 @@ def row(n_strips, repeats):
 
     for _ in range(20):
         step()
+    return sim, step
+
+
+def row(n_strips, repeats):
+    """Measure one style size."""
+    sim, step = demo_scene(n_strips)
     step_ms = median_ms(step, repeats * SUBSTEPS)
     renderer = HairRenderer.for_simulator(sim)
     R, p = sim.head_pose

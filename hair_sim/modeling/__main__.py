@@ -9,7 +9,7 @@ import sys
 
 from hair_sim.modeling.errors import HairstyleError
 from hair_sim.modeling.hairstyle import load_hairstyle
-from hair_sim.modeling.preview import export_obj, render_png
+from hair_sim.modeling.strips_over_head import export_obj, render_png
 from hair_sim.modeling.strips import build_strips
 
 

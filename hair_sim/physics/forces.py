@@ -557,3 +557,21 @@ def guard_rest_shape(rest, spheres):
                     rest[s, k, 2] += oz
                 moved += 1
     return moved
+
+
+def explicit_stability_problem(omega_squared, air_damping, dt, margin, what):
+    """
+    Return why explicit terms would be unstable at dt (or None); both models ask this.
+
+    omega_squared: the explicit terms' squared frequencies per segment; air damping acts
+    explicitly on every segment. `what` names the model and its explicit terms.
+    """
+    if air_damping * dt > 2.0 * margin:
+        return ('air_damping %g/s needs dt below %.2g s'
+                % (air_damping, 2.0 * margin / air_damping))
+    omega = float(np.sqrt(np.max(omega_squared)))
+    if omega * dt > 2.0 * margin:
+        return ('unstable with %s at dt = %.4g s: the stiffest explicit term has omega = '
+                '%.0f rad/s, which needs dt below %.3g s'
+                % (what, dt, omega, 2.0 * margin / omega))
+    return None

@@ -40,9 +40,3 @@ class Wind:
     def steady(self):
         """Return True when the wind does not change in time (no gusts)."""
         return self.amplitude == 0.0
-
-    def at(self, points, t):
-        """Return the wind velocity at points (n, 3) and time t (reference, numpy)."""
-        p = np.atleast_2d(points)
-        s = self.amplitude * np.sin(p @ self.mode_k.T - self.mode_w * t + self.mode_phase)
-        return self.velocity + s @ self.mode_dir

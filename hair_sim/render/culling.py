@@ -19,29 +19,6 @@ from hair_sim.render.ushape import strip_wall_bottoms
 
 
 @njit(cache=True)
-def _hidden(bx, by, bz, rho, eye, occ):
-    """Return True if the ball (b, rho) is in the shadow of some occluding sphere."""
-    dx, dy, dz = bx - eye[0], by - eye[1], bz - eye[2]
-    db = sqrt(dx * dx + dy * dy + dz * dz)
-    if db <= rho:
-        return False
-    for k in range(occ.shape[0]):
-        cx, cy, cz = occ[k, 0] - eye[0], occ[k, 1] - eye[1], occ[k, 2] - eye[2]
-        dc = sqrt(cx * cx + cy * cy + cz * cz)
-        r = occ[k, 3]
-        if dc <= r:
-            continue
-        if db - rho < sqrt(dc * dc - r * r):
-            continue
-        cosang = (dx * cx + dy * cy + dz * cz) / (db * dc)
-        cosang = min(1.0, max(-1.0, cosang))
-        ang = np.arccos(cosang)
-        if ang + asin(min(1.0, rho / db)) <= asin(r / dc):
-            return True
-    return False
-
-
-@njit(cache=True)
 def _ball_hidden_by(bx, by, bz, rho, eye, occ, k):
     """Return True if the ball (b, rho) is in the shadow of occluding sphere k."""
     dx, dy, dz = bx - eye[0], by - eye[1], bz - eye[2]

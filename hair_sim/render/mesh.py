@@ -59,11 +59,11 @@ class HairRenderer:
         self.texture_id, self.texture = texture_png(style.material)
         # sigma: +1 where the strip's AB x AC normal faces the scalp at rest (thesis 3.1)
         mid = rest.shape[1] // 2
-        a = rest[self.strip_strands[:, 0], mid]
-        b = rest[self.strip_strands[:, 1], mid]
-        c = rest[self.strip_strands[:, 0], min(mid + 1, rest.shape[1] - 1)]
-        n = np.cross(b - a, c - a)
-        towards = head.nearest_on_scalp(a) - a
+        m0, m1 = max(mid - 1, 0), min(mid + 1, rest.shape[1] - 1)
+        left, right = rest[self.strip_strands[:, 0]], rest[self.strip_strands[:, 1]]
+        n = np.array([ushape.strip_normal(a[mid], b[mid], a[m0], b[m0], a[m1], b[m1])
+                      for a, b in zip(left, right)]).reshape(-1, 3)
+        towards = head.nearest_on_scalp(left[:, mid]) - left[:, mid]
         self.sigma = np.where((n * towards).sum(axis=1) >= 0, 1.0, -1.0)
         tri = self.lod.triangles.astype(np.int64)
         self._tri_out = tri                               # outward when sigma = -1

@@ -31,7 +31,6 @@ def texture_rgba(material):
     edge = np.clip(np.minimum(u, 1 - u) / max(e, 1e-6), 0, 1)
     tip = np.clip((1 - v) / max(t, 1e-6), 0, 1)
     alpha = np.clip((0.55 + 0.45 * cover)[None, :] * edge[None, :] * tip[:, None], 0, 1)
-    alpha[:, :] = np.maximum(alpha, 0.0)
     out = np.concatenate([rgb, alpha[..., None]], axis=-1)
     return (out * 255 + 0.5).astype(np.uint8)
 

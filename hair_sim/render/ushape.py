@@ -20,15 +20,6 @@ from hair_sim.vecmath import perpendicular_unit
 
 
 @njit(cache=True)
-def _inside_scalp(x, y, z, scalp):
-    for k in range(scalp.shape[0]):
-        dx, dy, dz = x - scalp[k, 0], y - scalp[k, 1], z - scalp[k, 2]
-        if dx * dx + dy * dy + dz * dz < scalp[k, 3] * scalp[k, 3]:
-            return True
-    return False
-
-
-@njit(cache=True)
 def tangent_point(ax, ay, az, bx, by, bz, o, rs):
     """
     Return A' on sphere S (centre o, radius rs) for the pair (A, B), fig. 3.6.
@@ -77,7 +68,7 @@ def project_to_scalp(ax, ay, az, px, py, pz, scalp, delta):
     yx, yy, yz = px, py, pz
     while (xx - yx) ** 2 + (xy - yy) ** 2 + (xz - yz) ** 2 > delta * delta:
         zx, zy, zz = 0.5 * (xx + yx), 0.5 * (xy + yy), 0.5 * (xz + yz)
-        if _inside_scalp(zx, zy, zz, scalp):
+        if _inside_scalp_by(zx, zy, zz, scalp, 0.0):
             yx, yy, yz = zx, zy, zz
         else:
             xx, xy, xz = zx, zy, zz
@@ -111,17 +102,19 @@ def tessellate_strips(pos, strip_strands, strips, along, across, out_grid):
 
 
 @njit(cache=True)
-def _strip_normal(grid, k, r, C, R):
-    """Return the unit normal AB x AC of row r (A left edge, B right edge, C down the edge)."""
-    bx = grid[k, C - 1, r, 0] - grid[k, 0, r, 0]
-    by = grid[k, C - 1, r, 1] - grid[k, 0, r, 1]
-    bz = grid[k, C - 1, r, 2] - grid[k, 0, r, 2]
-    r0 = max(r - 1, 0)
-    r1 = min(r + 1, R - 1)
-    e = C - 1
-    cx = 0.5 * (grid[k, 0, r1, 0] + grid[k, e, r1, 0] - grid[k, 0, r0, 0] - grid[k, e, r0, 0])
-    cy = 0.5 * (grid[k, 0, r1, 1] + grid[k, e, r1, 1] - grid[k, 0, r0, 1] - grid[k, e, r0, 1])
-    cz = 0.5 * (grid[k, 0, r1, 2] + grid[k, e, r1, 2] - grid[k, 0, r0, 2] - grid[k, e, r0, 2])
+def strip_normal(left, right, left_prev, right_prev, left_next, right_next):
+    """
+    Return the unit normal AB x AC of a strip's row (0 if degenerate), thesis 3.1.
+
+    A is the row's left edge, B its right edge, C the direction down the strip: the mean
+    of both edges' central differences between the previous and next rows.
+    """
+    bx = right[0] - left[0]
+    by = right[1] - left[1]
+    bz = right[2] - left[2]
+    cx = 0.5 * (left_next[0] + right_next[0] - left_prev[0] - right_prev[0])
+    cy = 0.5 * (left_next[1] + right_next[1] - left_prev[1] - right_prev[1])
+    cz = 0.5 * (left_next[2] + right_next[2] - left_prev[2] - right_prev[2])
     nx, ny, nz = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx
     n = sqrt(nx * nx + ny * ny + nz * nz)
     if n < 1e-18:
@@ -157,7 +150,10 @@ def ushape(grid, sigma, strips, scalp, centre, rs, delta, max_dist, fix_len, out
                 bx, by, bz = grid[k, cb, r, 0], grid[k, cb, r, 1], grid[k, cb, r, 2]
                 tx, ty, tz = tangent_point(ax, ay, az, bx, by, bz, centre, rs)
                 px, py, pz = project_to_scalp(ax, ay, az, tx, ty, tz, scalp, delta)
-                nx, ny, nz = _strip_normal(grid, k, r, C, R)
+                r0, r1 = max(r - 1, 0), min(r + 1, R - 1)
+                nx, ny, nz = strip_normal(grid[k, 0, r], grid[k, C - 1, r],
+                                          grid[k, 0, r0], grid[k, C - 1, r0],
+                                          grid[k, 0, r1], grid[k, C - 1, r1])
                 nx, ny, nz = sg * nx, sg * ny, sg * nz          # towards the scalp side
                 vx, vy, vz = px - ax, py - ay, pz - az
                 dist = sqrt(vx * vx + vy * vy + vz * vz)
@@ -194,16 +190,9 @@ def strip_wall_bottoms(pos, strip_strands, s, sigma_s, scalp, centre, rs, delta,
             px, py, pz = project_to_scalp(ax, ay, az, tx, ty, tz, scalp, delta)
             # the strip normal AB x AC with A the left edge, as ushape() takes it
             j0, j1 = max(j - 1, 0), min(j + 1, V - 1)
-            bx = pos[l1, j, 0] - pos[l0, j, 0]
-            by = pos[l1, j, 1] - pos[l0, j, 1]
-            bz = pos[l1, j, 2] - pos[l0, j, 2]
-            cx = 0.5 * (pos[l0, j1, 0] + pos[l1, j1, 0] - pos[l0, j0, 0] - pos[l1, j0, 0])
-            cy = 0.5 * (pos[l0, j1, 1] + pos[l1, j1, 1] - pos[l0, j0, 1] - pos[l1, j0, 1])
-            cz = 0.5 * (pos[l0, j1, 2] + pos[l1, j1, 2] - pos[l0, j0, 2] - pos[l1, j0, 2])
-            nx, ny, nz = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx
-            nn = sqrt(nx * nx + ny * ny + nz * nz)
-            if nn > 1e-18:
-                nx, ny, nz = sigma_s * nx / nn, sigma_s * ny / nn, sigma_s * nz / nn
+            nx, ny, nz = strip_normal(pos[l0, j], pos[l1, j], pos[l0, j0], pos[l1, j0],
+                                      pos[l0, j1], pos[l1, j1])
+            nx, ny, nz = sigma_s * nx, sigma_s * ny, sigma_s * nz
             vx, vy, vz = px - ax, py - ay, pz - az
             if vx * vx + vy * vy + vz * vz > max_dist * max_dist or \
                     vx * nx + vy * ny + vz * nz < 0.0:

@@ -77,16 +77,12 @@ def main(argv=None):
     parser.add_argument('--parent-pid', type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args(remove_ros_args(argv)[1:])
     rclpy.init(args=argv)
-    node = None
     try:
-        node = HeadDriver(args.rate, args.frame, args.parent_pid)
-        rclpy.spin(node)
+        rclpy.spin(HeadDriver(args.rate, args.frame, args.parent_pid))
     except (KeyboardInterrupt, ExternalShutdownException, SystemExit):
         pass
     finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        rclpy.try_shutdown()            # the process ends with it; the node goes too
     return 0
 
 

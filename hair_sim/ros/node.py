@@ -109,10 +109,10 @@ class HairSimNode(Node):
         style = self._read_style(self._p('hairstyle'), self._p('hairstyle_dirs'),
                                  self._rates())
         sim = HairSimulator(style, **self._physics_params())
-        sim.stability_dt = 1.0 / self._p('sim_rate')
-        problem = stability_problem(sim.params, sim, sim.stability_dt)
-        if problem:
-            raise ValueError('physics parameters refused: %s' % problem)
+        try:
+            sim.plan_step(1.0 / self._p('sim_rate'))
+        except ValueError as exc:
+            raise ValueError('physics parameters refused: %s' % exc) from None
         self.scene = Scene(1, sim, HairRenderer.for_simulator(sim))
         self._committed = 0               # seq of the last build job swapped in
         self._encoder = None
@@ -280,7 +280,7 @@ class HairSimNode(Node):
         self._validated = None
         physics = {k[len(PHYSICS):]: v for k, v in changed.items() if k.startswith(PHYSICS)}
         if 'sim_rate' in changed:
-            self.sim.stability_dt = 1.0 / float(changed['sim_rate'])
+            self.sim.plan_step(1.0 / float(changed['sim_rate']))     # checked in on_set
         if physics:
             self.sim.set_params(**physics)
         if 'hairstyle' in changed:
@@ -316,10 +316,10 @@ class HairSimNode(Node):
     def _build_scene(self, style, verb):
         """Worker thread: build a simulator and renderer for `style`; check them fully."""
         sim = HairSimulator(style, **self.sim.params.__dict__)
-        sim.stability_dt = self.sim.stability_dt
-        problem = stability_problem(sim.params, sim, sim.stability_dt)
-        if problem:
-            raise HairstyleError('%s: %s' % (style.name, problem))
+        try:
+            sim.plan_step(self.sim.stability_dt)
+        except ValueError as exc:
+            raise HairstyleError('%s: %s' % (style.name, exc)) from None
         renderer = HairRenderer.for_simulator(sim)
         return sim, renderer, '%s %s (%d strips)' % (verb, style.name, style.n_strips)
 
@@ -606,8 +606,7 @@ class HairSimNode(Node):
                   'builds_pending': str(self.builder.pending),
                   'publish_gap_max_ms': '%.1f' % self.publish_gap_ms}
         values.update({k: str(v) for k, v in self.counts.items()})
-        values.update({'pose_' + k: str(v) for k, v in sim.motion.counts.items()})
-        values.update({k: str(v) for k, v in sim.counters.items()})
+        values.update({k: str(v) for k, v in sim.diagnostics().items()})
         values.update({'refused_' + k: str(v) for k, v in sorted(self.refused.items())})
         values.update({'error_' + k: str(v) for k, v in sorted(self.errors.items())})
         values['refused_total'] = str(sum(self.refused.values()))

@@ -84,15 +84,20 @@ class Live:
         return self.node.stop()
 
 
-@pytest.fixture(scope='module')
-def live(tmp_path_factory):
-    """One node process for the module; every test leaves it healthy."""
-    run = Live(tmp_path_factory.mktemp('boundary'))
+def live_session(tmp_path_factory, name):
+    """Yield one node process for a test module; it must be healthy at the end."""
+    run = Live(tmp_path_factory.mktemp(name))
     try:
         yield run
         run.assert_healthy()
     finally:
         run.close()
+
+
+@pytest.fixture(scope='module')
+def live(tmp_path_factory):
+    """One node process for the module; every test leaves it healthy."""
+    yield from live_session(tmp_path_factory, 'boundary')
 
 
 def refused(response, *fragments):
@@ -126,7 +131,6 @@ def test_1_an_unexpected_error_in_any_callback_is_counted_and_the_node_goes_on(n
             raise RuntimeError('injected renderer failure')
 
     renderer, node.scene.renderer = node.scene.renderer, Broken()
-    node.scene._mesh_key = None
     set_pose = node.sim.set_head_pose
     node.sim.set_head_pose = lambda *a: 1 / 0
     pub = client.create_publisher(PoseStamped, 'head_pose', qos_profile_sensor_data)

@@ -20,7 +20,7 @@ import yaml
 
 from hair_sim import paths
 from hair_sim.modeling import HairstyleError, load_hairstyle
-from test_boundary import Live, NODE
+from test_boundary import live_session, NODE
 
 BASE = yaml.safe_load(open(paths.shipped_style('bob_fringe')))
 COUNTER = itertools.count()
@@ -93,12 +93,7 @@ texts = st.one_of(
 @pytest.fixture(scope='module')
 def live(tmp_path_factory):
     """One node process for the module."""
-    run = Live(tmp_path_factory.mktemp('hostile'))
-    try:
-        yield run
-        run.assert_healthy()
-    finally:
-        run.close()
+    yield from live_session(tmp_path_factory, 'hostile')
 
 
 def answered(r, where):

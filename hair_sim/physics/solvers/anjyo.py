@@ -23,8 +23,8 @@ from math import acos, atan2, cos, pi, sin, sqrt
 from numba import njit
 import numpy as np
 
-from hair_sim.physics.forces import (GUARD_MOVES, guard_segment, MAX_RATE, MIN_SIN_THETA,
-                                     RECHARTS, rotate, TURN_CLAMPS)
+from hair_sim.physics.forces import (explicit_stability_problem, GUARD_MOVES, guard_segment,
+                                     MAX_RATE, MIN_SIN_THETA, RECHARTS, rotate, TURN_CLAMPS)
 from hair_sim.vecmath import perpendicular_unit
 
 POLE_COS = cos(pi / 4.0)     # re-chart when |cos(theta)| exceeds this (45 deg from a pole)
@@ -426,12 +426,5 @@ class AnjyoSolver:
             if params.damping * dt > 2.0 * margin:
                 return ('damping %g/s with the explicit integrator needs dt below %.2g s'
                         % (params.damping, 2.0 * margin / params.damping))
-        if params.air_damping * dt > 2.0 * margin:
-            return ('air_damping %g/s needs dt below %.2g s'
-                    % (params.air_damping, 2.0 * margin / params.air_damping))
-        omega = float(np.sqrt(explicit.max()))
-        if omega * dt > 2.0 * margin:
-            return ('unstable with the %s integrator at dt = %.4g s: the stiffest explicit '
-                    'term has omega = %.0f rad/s, which needs dt below %.3g s'
-                    % (params.integrator, dt, omega, 2.0 * margin / omega))
-        return None
+        return explicit_stability_problem(explicit, params.air_damping, dt, margin,
+                                          'the %s integrator' % params.integrator)

@@ -62,8 +62,8 @@ from numba import njit
 import numpy as np
 
 from hair_sim.physics.forces import (CONTACT_C, CONTACT_K, CONTACT_LEVER, CONTACT_NX,
-                                     CONTACT_NY, CONTACT_NZ, GUARD_MOVES, guard_segment,
-                                     MAX_RATE)
+                                     CONTACT_NY, CONTACT_NZ, explicit_stability_problem,
+                                     GUARD_MOVES, guard_segment, MAX_RATE)
 
 # weight of the implicit spring increment: >= 1/4 is stable for a still base; a stiff root
 # joint driven by a turning head grew at 0.3 (measured, 1/60 s) and holds at 0.5
@@ -281,6 +281,9 @@ def step_chains(state,
     w = np.zeros(3)
     t3 = np.zeros(3)
     t4 = np.zeros(3)
+    y3 = np.zeros(3)
+    qa = np.zeros(3)
+    ql = np.zeros(3)
     E = np.zeros((3, 3))
     Rnew = np.zeros((3, 3))
     Q = np.zeros((3, 3))
@@ -450,21 +453,15 @@ def step_chains(state,
             w[0], w[1], w[2] = wm[i - 1, 0], wm[i - 1, 1], wm[i - 1, 2]
             _cross(w, av, t4)
             _cross(w, t4, t4)
-            y0 = S[0, 0] * u[i, 0] + S[0, 1] * u[i, 1] + S[0, 2] * u[i, 2]
-            y1 = S[1, 0] * u[i, 0] + S[1, 1] * u[i, 1] + S[1, 2] * u[i, 2]
-            y2 = S[2, 0] * u[i, 0] + S[2, 1] * u[i, 1] + S[2, 2] * u[i, 2]
-            qa0 = pa0 + E[0, 0] * t4[0] + E[0, 1] * t4[1] + E[0, 2] * t4[2] + \
-                J[0, 0] * y0 + J[0, 1] * y1 + J[0, 2] * y2
-            qa1 = pa1 + E[1, 0] * t4[0] + E[1, 1] * t4[1] + E[1, 2] * t4[2] + \
-                J[1, 0] * y0 + J[1, 1] * y1 + J[1, 2] * y2
-            qa2 = pa2 + E[2, 0] * t4[0] + E[2, 1] * t4[1] + E[2, 2] * t4[2] + \
-                J[2, 0] * y0 + J[2, 1] * y1 + J[2, 2] * y2
-            ql0 = pl0 + D[0, 0] * t4[0] + D[0, 1] * t4[1] + D[0, 2] * t4[2] + \
-                B[0, 0] * y0 + B[1, 0] * y1 + B[2, 0] * y2
-            ql1 = pl1 + D[1, 0] * t4[0] + D[1, 1] * t4[1] + D[1, 2] * t4[2] + \
-                B[0, 1] * y0 + B[1, 1] * y1 + B[2, 1] * y2
-            ql2 = pl2 + D[2, 0] * t4[0] + D[2, 1] * t4[1] + D[2, 2] * t4[2] + \
-                B[0, 2] * y0 + B[1, 2] * y1 + B[2, 2] * y2
+            for a in range(3):
+                y3[a] = S[a, 0] * u[i, 0] + S[a, 1] * u[i, 1] + S[a, 2] * u[i, 2]
+            for a in range(3):
+                qa[a] = E[a, 0] * t4[0] + E[a, 1] * t4[1] + E[a, 2] * t4[2] + \
+                    J[a, 0] * y3[0] + J[a, 1] * y3[1] + J[a, 2] * y3[2]
+                ql[a] = D[a, 0] * t4[0] + D[a, 1] * t4[1] + D[a, 2] * t4[2] + \
+                    B[0, a] * y3[0] + B[1, a] * y3[1] + B[2, a] * y3[2]
+            qa0, qa1, qa2 = pa0 + qa[0], pa1 + qa[1], pa2 + qa[2]
+            ql0, ql1, ql2 = pl0 + ql[0], pl1 + ql[1], pl2 + ql[2]
             # move to the parent's joint, a_p back along the parent rod:
             # A' = A - B[a] + [a]B^T - [a]M[a], B' = B + [a]M, M' = M, p'_ang = p_ang + a x p_lin
             _skew(av, T1)
@@ -501,15 +498,14 @@ def step_chains(state,
                 lz += px_ * by - py_ * bx + wx * cy - wy * cx
                 ax_, ay_, az_ = px_, py_, pz_
             # q'' = D^-1 (u - J alpha_p - B a_p)
-            g0 = u[i, 0] - (U_A[i, 0, 0] * ax_ + U_A[i, 0, 1] * ay_ + U_A[i, 0, 2] * az_
-                            + U_B[i, 0, 0] * lx + U_B[i, 0, 1] * ly + U_B[i, 0, 2] * lz)
-            g1 = u[i, 1] - (U_A[i, 1, 0] * ax_ + U_A[i, 1, 1] * ay_ + U_A[i, 1, 2] * az_
-                            + U_B[i, 1, 0] * lx + U_B[i, 1, 1] * ly + U_B[i, 1, 2] * lz)
-            g2 = u[i, 2] - (U_A[i, 2, 0] * ax_ + U_A[i, 2, 1] * ay_ + U_A[i, 2, 2] * az_
-                            + U_B[i, 2, 0] * lx + U_B[i, 2, 1] * ly + U_B[i, 2, 2] * lz)
-            alpha[i, 0] = ax_ + Dinv[i, 0, 0] * g0 + Dinv[i, 0, 1] * g1 + Dinv[i, 0, 2] * g2
-            alpha[i, 1] = ay_ + Dinv[i, 1, 0] * g0 + Dinv[i, 1, 1] * g1 + Dinv[i, 1, 2] * g2
-            alpha[i, 2] = az_ + Dinv[i, 2, 0] * g0 + Dinv[i, 2, 1] * g1 + Dinv[i, 2, 2] * g2
+            for a in range(3):
+                t3[a] = u[i, a] - (U_A[i, a, 0] * ax_ + U_A[i, a, 1] * ay_ + U_A[i, a, 2] * az_
+                                   + U_B[i, a, 0] * lx + U_B[i, a, 1] * ly + U_B[i, a, 2] * lz)
+            for a in range(3):
+                alpha[i, a] = Dinv[i, a, 0] * t3[0] + Dinv[i, a, 1] * t3[1] + Dinv[i, a, 2] * t3[2]
+            alpha[i, 0] += ax_
+            alpha[i, 1] += ay_
+            alpha[i, 2] += az_
         # ---------------- integrate, place the vertices, guard
         for j in range(n_seg + 1):
             pos_prev[s, j, 0] = pos[s, j, 0]
@@ -798,12 +794,5 @@ class ArticulatedSolver:
                 params.scalp_stiffness
         # (contacts are taken implicitly)
         explicit = (beyond * params.gravity * length + springs * length ** 3) / inertia
-        if params.air_damping * dt > 2.0 * margin:
-            return ('air_damping %g/s needs dt below %.2g s'
-                    % (params.air_damping, 2.0 * margin / params.air_damping))
-        omega = float(np.sqrt(explicit.max()))
-        if omega * dt > 2.0 * margin:
-            return ('unstable with the articulated model at dt = %.4g s: the stiffest '
-                    'explicit term (gravity tension, springs) has omega = %.0f rad/s, which '
-                    'needs dt below %.3g s' % (dt, omega, 2.0 * margin / omega))
-        return None
+        return explicit_stability_problem(explicit, params.air_damping, dt, margin,
+                                          'the articulated model (gravity tension, springs)')

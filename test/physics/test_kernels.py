@@ -1,0 +1,137 @@
+"""
+The thesis model's kernels one by one, against closed forms (PyElastica's shape of test).
+
+Chart re-centring keeps every direction it re-expresses; eq. 4's moments are the virtual
+work of the forces; the eq. 6 update and its implicit variant follow the closed-form
+solution of their own recurrences; the position guard turns an end out of the sphere at
+the segment's length, in its own plane, and a guarded strand keeps its segment lengths.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from hair_sim.physics.forces import GUARD_MARGIN, guard_rest_shape, guard_segment
+from hair_sim.physics.solvers.anjyo import (_direction, _moments, _next_deviation, _recentre,
+                                            EXPLICIT, IMPLICIT, POLE_COS, W_NEXT, W_NOW,
+                                            W_PREV)
+
+
+def random_chart(rng):
+    """Return a random chart: rows are its x, y, z axes in the world."""
+    return np.ascontiguousarray(Rotation.random(random_state=rng).as_matrix().T)
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_recentre_keeps_directions_and_leaves_the_pole(seed):
+    """A segment near its chart's pole is re-expressed in a chart where it is not."""
+    rng = np.random.default_rng(seed)
+    C = random_chart(rng)
+    th, ph = 0.05 + 0.1 * rng.random(), 2 * math.pi * rng.random()
+    thp, php = th + 0.01, ph - 0.02
+    rest = np.array(_direction(C, 0.3, 1.0))
+    before = [np.array(_direction(C, th, ph)), np.array(_direction(C, thp, php))]
+    C2 = C.copy()
+    th2, ph2, thp2, php2, th0, ph0, moved = _recentre(C2, th, ph, thp, php, *rest)
+    assert moved
+    assert np.allclose(C2 @ C2.T, np.eye(3), atol=1e-12)
+    assert np.allclose(_direction(C2, th2, ph2), before[0], atol=1e-12)
+    assert np.allclose(_direction(C2, thp2, php2), before[1], atol=1e-12)
+    assert np.allclose(_direction(C2, th0, ph0), rest, atol=1e-12)
+    assert abs(math.cos(th2)) <= POLE_COS + 1e-12
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_moments_are_the_virtual_work_of_the_forces(seed):
+    """Eq. 4: M_theta = dW/dtheta, M_phi = dW/dphi, W = F_dist . r_centre + F_end . r_end."""
+    rng = np.random.default_rng(seed)
+    C = random_chart(rng)
+    th, ph, seg = 0.3 + 2.5 * rng.random(), 2 * math.pi * rng.random(), 0.02
+    fd, fe = rng.normal(size=3), rng.normal(size=3)
+
+    def work(t, p):
+        d = np.array(_direction(C, t, p))
+        return fd @ (0.5 * seg * d) + fe @ (seg * d)
+    eps = 1e-6
+    m_theta = (work(th + eps, ph) - work(th - eps, ph)) / (2 * eps)
+    m_phi = (work(th, ph + eps) - work(th, ph - eps)) / (2 * eps)
+    got = _moments(C, th, ph, seg, fd, fe)
+    assert got[0] == pytest.approx(m_theta, rel=1e-7, abs=1e-12)
+    assert got[1] == pytest.approx(m_phi, rel=1e-7, abs=1e-12)
+
+
+@pytest.mark.parametrize('integrator', [EXPLICIT, IMPLICIT])
+@pytest.mark.parametrize('steps', [10, 100, 1000])
+def test_free_oscillation_follows_its_recurrence_in_closed_form(integrator, steps):
+    """
+    With no moment and no damping x_n = A l1^n + B l2^n, l the characteristic roots.
+
+    explicit (eq. 6): l^2 - (2 - a) l + 1 = 0; implicit: (1 + a W_NEXT) l^2 - (2 - a W_NOW) l
+    + (1 + a W_PREV) = 0, a = h^2 k / I. The roots' angle tends to w h, w = sqrt(k / I).
+    """
+    k, inv_i, h = 2.0, 50.0, 1.0 / 240
+    a = h * h * k * inv_i
+    if integrator == EXPLICIT:
+        coeffs = [1.0, -(2.0 - a), 1.0]
+    else:
+        coeffs = [1.0 + a * W_NEXT, -(2.0 - a * W_NOW), 1.0 + a * W_PREV]
+    l1, l2 = np.roots(coeffs)
+    x0, xm1 = 1.0, 0.999                           # x_0 and x_-1
+    A, B = np.linalg.solve([[1.0, 1.0], [1.0 / l1, 1.0 / l2]], [x0, xm1])
+    x, xp = x0, xm1
+    for _ in range(steps):
+        x, xp = _next_deviation(x, xp, 0.0, k, inv_i, 0.0, h, integrator), x
+    expected = (A * l1 ** steps + B * l2 ** steps).real
+    assert x == pytest.approx(expected, abs=1e-10 * steps)
+    w = math.sqrt(k * inv_i)
+    assert abs(abs(np.angle(l1)) / h - w) / w < a     # consistent with the ODE
+    assert abs(l1) <= 1.0 + 1e-12                     # never grows
+
+
+@pytest.mark.parametrize('integrator', [EXPLICIT, IMPLICIT])
+def test_constant_moment_settles_at_its_static_deviation(integrator):
+    """With damping the deviation settles at x = M / k (the spring balances the moment)."""
+    k, inv_i, h, moment = 2.0, 50.0, 1.0 / 240, 0.3
+    x = xp = 0.0
+    for _ in range(20000):
+        x, xp = _next_deviation(x, xp, moment, k, inv_i, 5.0, h, integrator), x
+    assert x == pytest.approx(moment / k, rel=1e-9)
+
+
+@pytest.mark.parametrize('depth', [1e-4, 3e-3, 2e-2])
+@pytest.mark.parametrize('radius', [0.05, 0.1])
+def test_guard_turns_the_end_out_of_the_sphere_in_its_plane(depth, radius):
+    """The guarded end is GUARD_MARGIN outside, l from the start, in the plane it turned in."""
+    centre = np.array([0.0, 0.0, 0.0])
+    seg = 0.03
+    start = np.array([radius + 0.005, 0.0, 0.0])
+    # an end `depth` inside the sphere, reached from the start
+    target = radius - depth
+    ang = math.acos((start[0] ** 2 + target ** 2 - seg ** 2) / (2 * start[0] * target))
+    end = target * np.array([math.cos(ang), math.sin(ang), 0.0])
+    assert abs(np.linalg.norm(end - start) - seg) < 1e-12
+    spheres = np.array([[*centre, radius]])
+    gx, gy, gz, moved = guard_segment(*start, *end, seg, spheres, np.int64(1))
+    g = np.array([gx, gy, gz])
+    assert moved
+    assert np.linalg.norm(g - start) == pytest.approx(seg, abs=1e-12)
+    assert np.linalg.norm(g - centre) >= radius + GUARD_MARGIN - 1e-9
+    assert abs(g[2]) < 1e-12                      # no sideways turn: the smallest one
+
+
+@pytest.mark.parametrize('n', [4, 16, 64])
+def test_guarded_rest_shape_keeps_lengths_and_leaves_the_sphere(n):
+    """A strand drawn straight through a sphere is turned out of it, segment by segment."""
+    radius = 0.1
+    start = np.array([0.0, 0.02, radius + 0.001])
+    s = np.linspace(0.0, 0.25, n + 1)
+    rest = (start + s[:, None] * np.array([0.3, 0.0, -1.0]) / math.hypot(0.3, 1.0))[None]
+    lengths = np.linalg.norm(np.diff(rest[0], axis=0), axis=1)
+    spheres = np.array([[0.0, 0.0, 0.0, radius]])
+    shaped = rest.copy()
+    guard_rest_shape(shaped, spheres)
+    assert np.allclose(np.linalg.norm(np.diff(shaped[0], axis=0), axis=1), lengths, atol=1e-12)
+    assert np.linalg.norm(shaped[0, 1:], axis=1).min() >= radius
+    assert np.array_equal(shaped[0, 0], rest[0, 0])                  # the root stays
