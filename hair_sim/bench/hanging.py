@@ -170,6 +170,7 @@ def run(quick=False, plots=None):
     here). Each record gives the tip RMS against it, the mean tip height and wall seconds
     per simulated second (one core, stepping only).
     """
+    from hair_sim.physics.simulator import SimulationDiverged
     sizes = [(50, 10)] if quick else [(50, 10), (200, 20)]
     dts = [1 / 60, 1 / 240] if quick else [1 / 60, 1 / 120, 1 / 240, 1 / 1000]
     try:
@@ -195,7 +196,7 @@ def run(quick=False, plots=None):
                 try:
                     tips, cost, _ = run_hair_sim(model, n_strands, n_segments, dt)
                     bad = _unstable(tips)
-                except (ZeroDivisionError, FloatingPointError, ValueError):
+                except SimulationDiverged:
                     tips, cost, bad = None, None, True
                 records.append({'solver': 'hair_sim ' + model, 'strands': n_strands,
                                 'segments': n_segments, 'dt': dt, 'stable': not bad,

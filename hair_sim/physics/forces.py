@@ -224,8 +224,9 @@ def _contact_weight(d, r):
 
 
 @njit(cache=True)
-def _record_contact(contact, s, i, k, c, nx, ny, nz, lever):
+def _record_contact(contact, s, i, k, c, normal, lever):
     """Keep the stiffest contact of segment i (its normal and lever) for an implicit model."""
+    nx, ny, nz = normal
     if k + c > contact[s, i, CONTACT_K] + contact[s, i, CONTACT_C]:
         contact[s, i, CONTACT_K] = k
         contact[s, i, CONTACT_C] = c
@@ -294,7 +295,7 @@ def reaction_constraint_forces(strands,
                     f_end[s, i, 0] += mag * nx
                     f_end[s, i, 1] += mag * ny
                     f_end[s, i, 2] += mag * nz
-                    _record_contact(contact, s, i, k if d < r else 0.0, w * c, nx, ny, nz,
+                    _record_contact(contact, s, i, k if d < r else 0.0, w * c, (nx, ny, nz),
                                     1.0)
                     contacts += 1
                     continue
@@ -328,7 +329,7 @@ def reaction_constraint_forces(strands,
                 f_end[s, i, 0] += tt * mag * nx
                 f_end[s, i, 1] += tt * mag * ny
                 f_end[s, i, 2] += tt * mag * nz
-                _record_contact(contact, s, i, k if dq < r else 0.0, w * c, nx, ny, nz, tt)
+                _record_contact(contact, s, i, k if dq < r else 0.0, w * c, (nx, ny, nz), tt)
                 contacts += 1
     return contacts
 
@@ -451,7 +452,7 @@ def strip_springs(strands,
 
 
 @njit(cache=True)
-def guard_segment(px, py, pz, ex, ey, ez, seg_len, spheres, mask):
+def guard_segment(start, end, seg_len, spheres, mask):
     """
     Position guard: turn the segment p->e (length l) so no vertex ends inside a sphere.
 
@@ -461,6 +462,8 @@ def guard_segment(px, py, pz, ex, ey, ez, seg_len, spheres, mask):
     turning the segment about its start. Spheres that contain the start are left alone.
     Returns the new end point and whether anything moved.
     """
+    px, py, pz = start
+    ex, ey, ez = end
     moved = False
     for _ in range(GUARD_PASSES):
         changed = False
@@ -546,8 +549,8 @@ def guard_rest_shape(rest, spheres):
             px, py, pz = rest[s, j, 0], rest[s, j, 1], rest[s, j, 2]
             dx, dy, dz = rest[s, j + 1, 0] - px, rest[s, j + 1, 1] - py, rest[s, j + 1, 2] - pz
             seg_len = sqrt(dx * dx + dy * dy + dz * dz)
-            ex, ey, ez, m = guard_segment(px, py, pz, rest[s, j + 1, 0], rest[s, j + 1, 1],
-                                          rest[s, j + 1, 2], seg_len, spheres, all_spheres)
+            end = (rest[s, j + 1, 0], rest[s, j + 1, 1], rest[s, j + 1, 2])
+            ex, ey, ez, m = guard_segment((px, py, pz), end, seg_len, spheres, all_spheres)
             if m:
                 # carry the rest of the strand along rigidly so other segments keep theirs
                 ox, oy, oz = ex - rest[s, j + 1, 0], ey - rest[s, j + 1, 1], ez - rest[s, j + 1, 2]

@@ -35,6 +35,10 @@ STILL_ACCELERATION = 1e-3      # m/s^2
 ANGULAR_ACCELERATION_LEVER = 0.1
 
 
+class SimulationDiverged(RuntimeError):
+    """A step produced a non-finite state; the simulator has reset to the rest shape."""
+
+
 class HairSimulator:
     """
     Simulate every strand of a hairstyle (thesis ch. 4-5).
@@ -69,6 +73,7 @@ class HairSimulator:
         self.time = 0.0
         self.counters = {'steps': 0, 'awake_steps': 0, 'segment_updates': 0,
                          'kernel_calls': 0, 'broad_phase_checks': 0, 'contacts': 0,
+                         'diverged': 0,
                          'wall_springs': 0, 'recharts': 0, 'guard_moves': 0, 'wakes': 0,
                          'turn_clamps': 0, 'substeps': 0}
         self.last_step_time = 0.0
@@ -411,7 +416,17 @@ class HairSimulator:
             self.time = t
             self.last_step_time = _time.perf_counter() - t0
             return False
-        self._simulate(t, h)
+        try:
+            self._simulate(t, h)
+            finite = bool(np.all(np.isfinite(self.pos)))
+        except (ZeroDivisionError, FloatingPointError, OverflowError):
+            finite = False
+        if not finite:
+            self.counters['diverged'] += 1
+            self.reset()
+            raise SimulationDiverged(
+                'the %s model diverged at t = %.3f s (dt %.4g s); the hair was put back at '
+                'its rest shape under the current head' % (self.params.model, t, h))
         # Settled: with steady inputs, no vertex has left a sleep_tolerance ball around where
         # it was when the quiet window began, for sleep_delay seconds. (A displacement
         # window, not a speed: contact can make a vertex tremble by the guard's 0.2 mm.)

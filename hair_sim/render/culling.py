@@ -97,8 +97,15 @@ def _patch_hidden(p0, p1, q0, q1, dev, eye, occ, leaf):
 
 
 @njit(cache=True)
-def visible_strips(pos, strip_strands, sigma, scalp, centre, rs, delta, max_dist, fix_len,
-                   eye, occ, leaf, bottoms, out):
+def visible_strips(pos,
+                   strip_strands,
+                   sigma,
+                   projection,
+                   eye,
+                   occ,
+                   leaf,
+                   bottoms,
+                   out):
     """
     Write 1 into out[s] for strips that may be seen from eye, 0 for culled ones.
 
@@ -128,8 +135,14 @@ def visible_strips(pos, strip_strands, sigma, scalp, centre, rs, delta, max_dist
             if vis:
                 break
         if not vis:
-            strip_wall_bottoms(pos, strip_strands, s, sigma[s], scalp, centre, rs, delta,
-                               max_dist, fix_len, bottoms)
+            strip_wall_bottoms(
+                pos,
+                strip_strands,
+                s,
+                sigma[s],
+                projection,
+                bottoms,
+            )
         for q in range(2):
             if vis:
                 break

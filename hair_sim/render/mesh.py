@@ -106,15 +106,25 @@ class HairRenderer:
         occ[:, 3] -= 1e-4                      # a shade smaller: culling stays conservative
         centre = self.head.projection_sphere[:3] @ R.T + p
         rs = 0.0 if self.point_centre else float(self.head.projection_sphere[3])
-        return np.ascontiguousarray(scalp), np.ascontiguousarray(occ), centre, rs
+        projection = ushape.Projection(scalp=np.ascontiguousarray(scalp), centre=centre, rs=rs,
+                                       delta=self.delta, max_dist=self.max_distance,
+                                       fix_len=self.fix_length)
+        return projection, np.ascontiguousarray(occ)
 
     def visible(self, pos, R, p, viewpoint):
         """Return the indices of the strips that may be seen from `viewpoint` (world)."""
-        scalp, occ, centre, rs = self._world(R, p)
-        culling.visible_strips(pos, self.strip_strands, self.sigma, scalp, centre, rs,
-                               self.delta, self.max_distance, self.fix_length,
-                               np.asarray(viewpoint, dtype=np.float64), occ, CULL_LEAF,
-                               self._bottoms, self._vis)
+        projection, occ = self._world(R, p)
+        culling.visible_strips(
+            pos,
+            self.strip_strands,
+            self.sigma,
+            projection,
+            np.asarray(viewpoint, dtype=np.float64),
+            occ,
+            CULL_LEAF,
+            self._bottoms,
+            self._vis,
+        )
         return np.flatnonzero(self._vis)
 
     def mesh(self, pos, R, p, viewpoint=None, frame_id='world', walls=True):
@@ -125,15 +135,21 @@ class HairRenderer:
         """
         strips = self._all if viewpoint is None else self.visible(pos, R, p, viewpoint)
         k = len(strips)
-        scalp, _, centre, rs = self._world(R, p)
+        projection, _ = self._world(R, p)
         grid = self._grid[:k]
         out = self._out[:k]
         flags = self._flags[:k]
         sel = np.ascontiguousarray(strips, dtype=np.int64)
         ushape.tessellate_strips(pos, self.strip_strands, sel, self.lod.along, self.lod.across,
                                  grid)
-        ushape.ushape(grid, self.sigma, sel, scalp, centre, rs, self.delta, self.max_distance,
-                      self.fix_length, out, flags)
+        ushape.ushape(
+            grid,
+            self.sigma,
+            sel,
+            projection,
+            out,
+            flags,
+        )
         nv, nt = self.lod.verts_per_strip, self.lod.tris_per_strip
         if viewpoint is None and self._cache_all is not None:
             indices, uvs, offsets = self._cache_all

@@ -27,8 +27,9 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)):
 
 
 @njit(cache=True)
-def _raster(verts_cam, tris, uvs, tex, alpha_cut, width, height, focal, depth, tri_id,
-            bary):
+def _raster(verts_cam, tris, uvs, tex, view, depth, tri_id, bary):
+    """Rasterize triangles (camera coordinates) into depth, triangle id and barycentrics."""
+    width, height, focal, alpha_cut = view
     for t in range(tris.shape[0]):
         i0, i1, i2 = tris[t, 0], tris[t, 1], tris[t, 2]
         z0, z1, z2 = verts_cam[i0, 2], verts_cam[i1, 2], verts_cam[i2, 2]
@@ -126,8 +127,9 @@ class Camera:
         bary = np.zeros((self.height, self.width, 2))
         tex = np.zeros((0, 0, 4), np.uint8) if texture is None else texture
         uv = np.zeros((len(vertices), 2)) if uvs is None else np.asarray(uvs, np.float64)
-        _raster(self.to_camera(vertices), np.asarray(indices, np.int64), uv, tex,
-                alpha_cut, self.width, self.height, self.focal, depth, tri_id, bary)
+        view = (self.width, self.height, float(self.focal), alpha_cut)
+        _raster(self.to_camera(vertices), np.asarray(indices, np.int64), uv, tex, view, depth,
+                tri_id, bary)
         return depth, tri_id, bary
 
     def render_spheres(self, spheres):

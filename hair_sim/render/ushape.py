@@ -12,11 +12,18 @@ towards the scalp side, of length C (fig. 3.4 B, D). Nothing of this is stored b
 frames.
 """
 
+from collections import namedtuple
 from math import sqrt
 
 from numba import njit
 
 from hair_sim.vecmath import perpendicular_unit
+
+# How the walls are projected (thesis 3.2): scalp spheres (world), the projection sphere's
+# centre and radius rs (0: a point), the bisection tolerance delta, and the fix-up of a wall
+# whose projection is farther than max_dist or reversed: fix_len along the strip normal.
+Projection = namedtuple('Projection', ['scalp', 'centre', 'rs', 'delta', 'max_dist',
+                                       'fix_len'])
 
 
 @njit(cache=True)
@@ -123,7 +130,12 @@ def strip_normal(left, right, left_prev, right_prev, left_next, right_next):
 
 
 @njit(cache=True)
-def ushape(grid, sigma, strips, scalp, centre, rs, delta, max_dist, fix_len, out, flags):
+def ushape(grid,
+           sigma,
+           strips,
+           projection,
+           out,
+           flags):
     """
     Write the U-shape vertices of each strip into out (k, verts_per_strip, 3).
 
@@ -132,6 +144,9 @@ def ushape(grid, sigma, strips, scalp, centre, rs, delta, max_dist, fix_len, out
     the scalp side (fixed at rest), -1 otherwise. flags[k, side, r] = 0 projected on the
     scalp, 1 fixed because too far, 2 fixed because of reverse volume.
     """
+    scalp, centre, rs, delta = (projection.scalp, projection.centre, projection.rs,
+                                projection.delta)
+    max_dist, fix_len = projection.max_dist, projection.fix_len
     K, C, R = grid.shape[0], grid.shape[1], grid.shape[2]
     for k in range(K):
         sg = sigma[strips[k]]
@@ -175,9 +190,16 @@ def ushape(grid, sigma, strips, scalp, centre, rs, delta, max_dist, fix_len, out
 
 
 @njit(cache=True)
-def strip_wall_bottoms(pos, strip_strands, s, sigma_s, scalp, centre, rs, delta, max_dist,
-                       fix_len, out):
+def strip_wall_bottoms(pos,
+                       strip_strands,
+                       s,
+                       sigma_s,
+                       projection,
+                       out):
     """Write where the U-shape walls below strip s's simulated vertices end (fix-ups too)."""
+    scalp, centre, rs, delta = (projection.scalp, projection.centre, projection.rs,
+                                projection.delta)
+    max_dist, fix_len = projection.max_dist, projection.fix_len
     V = pos.shape[1]
     l0, l1 = strip_strands[s, 0], strip_strands[s, 1]
     for side in range(2):

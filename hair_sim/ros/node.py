@@ -45,7 +45,7 @@ from hair_sim.modeling.hairstyle import budget_problem, load_hairstyle, save_hai
 from hair_sim.modeling.safepath import allowed_dirs, resolve_style_path
 from hair_sim.modeling.strips import build_strips
 from hair_sim.physics.params import PhysicsParams
-from hair_sim.physics.simulator import HairSimulator, stability_problem
+from hair_sim.physics.simulator import HairSimulator, SimulationDiverged, stability_problem
 from hair_sim.render.mesh import HairRenderer
 from hair_sim.ros.params import all_parameters, PHYSICS
 from hair_sim.ros.scene import Scene, SceneBuilder
@@ -510,12 +510,12 @@ class HairSimNode(Node):
         else:
             self._acc -= n * h
         sim = self.sim
-        for _ in range(n):
-            sim.step(h)
-        if n and not np.all(np.isfinite(sim.pos)):       # a last line; never seen
+        try:
+            for _ in range(n):
+                sim.step(h)
+        except SimulationDiverged as exc:
             self.refused['nonfinite_state_reset'] += 1
-            self.get_logger().error('non-finite hair state: reset to the rest shape')
-            sim.reset()
+            self.get_logger().error('%s (counted)' % exc, throttle_duration_sec=2.0)
 
     # -------------------------------------------------------------- outputs
     def _stamp_now(self):

@@ -113,7 +113,7 @@ def test_guard_turns_the_end_out_of_the_sphere_in_its_plane(depth, radius):
     end = target * np.array([math.cos(ang), math.sin(ang), 0.0])
     assert abs(np.linalg.norm(end - start) - seg) < 1e-12
     spheres = np.array([[*centre, radius]])
-    gx, gy, gz, moved = guard_segment(*start, *end, seg, spheres, np.int64(1))
+    gx, gy, gz, moved = guard_segment(tuple(start), tuple(end), seg, spheres, np.int64(1))
     g = np.array([gx, gy, gz])
     assert moved
     assert np.linalg.norm(g - start) == pytest.approx(seg, abs=1e-12)

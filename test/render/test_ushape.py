@@ -94,8 +94,9 @@ def run_ushape(grid, sigma):
     scalp = np.array([[0.0, 0.0, 0.0, 0.2]])
     out = np.zeros((1, (3 + 4) * 5, 3))
     flags = np.zeros((1, 2, 5), dtype=np.int64)
-    ushape.ushape(grid, np.array([sigma]), np.array([0]), scalp, np.array([0.0, 0.0, 0.0]),
-                  0.05, 1e-4, 0.04, 0.006, out, flags)
+    projection = ushape.Projection(scalp=scalp, centre=np.array([0.0, 0.0, 0.0]), rs=0.05,
+                                   delta=1e-4, max_dist=0.04, fix_len=0.006)
+    ushape.ushape(grid, np.array([sigma]), np.array([0]), projection, out, flags)
     return out, flags
 
 

@@ -258,7 +258,7 @@ def integrate_strands(state,
             ex, ey, ez = px + seg_len * dx, py + seg_len * dy, pz + seg_len * dz
             moved = False
             if mask != 0:
-                ex, ey, ez, moved = guard_segment(px, py, pz, ex, ey, ez, seg_len, spheres,
+                ex, ey, ez, moved = guard_segment((px, py, pz), (ex, ey, ez), seg_len, spheres,
                                                   mask)
             if moved:
                 # contact: the segment is turned out of the sphere and stopped there

@@ -69,8 +69,10 @@ from hair_sim.physics.forces import (CONTACT_C, CONTACT_K, CONTACT_LEVER, CONTAC
 # joint driven by a turning head grew at 0.3 (measured, 1/60 s) and holds at 0.5
 GAMMA = 0.5
 UNRESOLVED_DAMPING = 0.5     # share of a step's spring increment that damps unresolved modes
-MAX_STEP_ROTATION = 0.1      # rad a segment may turn in one (sub)step
-MAX_SUBSTEPS = 16
+# rad a segment may turn in one substep: at 0.1 the tips of 20-segment strands falling
+# over the head whipped up and diverged (hanging scene, 1/60 to 1/240 s)
+MAX_STEP_ROTATION = 0.05
+MAX_SUBSTEPS = 64
 
 ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', 'd',
                                        'inertia_axial',
@@ -532,7 +534,7 @@ def step_chains(state,
             ey = py + seg * Rnew[1, 2]
             ez = pz + seg * Rnew[2, 2]
             if mask != 0:
-                gx, gy, gz, moved = guard_segment(px, py, pz, ex, ey, ez, seg, spheres, mask)
+                gx, gy, gz, moved = guard_segment((px, py, pz), (ex, ey, ez), seg, spheres, mask)
                 if moved:
                     # turn the rod minimally onto the guarded direction
                     ox, oy, oz = Rnew[0, 2], Rnew[1, 2], Rnew[2, 2]
@@ -729,6 +731,8 @@ class ArticulatedSolver:
         d = self.R[..., :, 2]
         swing = self.omega - (self.omega * d).sum(-1, keepdims=True) * d   # twist moves nothing
         fastest = float(np.sqrt((swing * swing).sum(-1)).max()) if swing.size else 0.0
+        if not np.isfinite(fastest):
+            return 1                        # a diverged state: the simulator's check reports it
         return max(1, min(MAX_SUBSTEPS, int(np.ceil(h * fastest / MAX_STEP_ROTATION))))
 
     def step(self, sim, h, R, roots):
