@@ -71,6 +71,8 @@ class HairSimulator:
         self.motion = HeadMotion(self.params)
         self.wind = Wind()
         self.time = 0.0
+        self._constants_of = None          # the params the cached kernel constants are for
+        self._springs_rest3 = None
         self.counters = {'steps': 0, 'awake_steps': 0, 'segment_updates': 0,
                          'kernel_calls': 0, 'broad_phase_checks': 0, 'contacts': 0,
                          'diverged': 0,
@@ -418,7 +420,8 @@ class HairSimulator:
             return False
         try:
             self._simulate(t, h)
-            finite = bool(np.all(np.isfinite(self.pos)))
+            # vertices are placed root to tip, so a NaN anywhere reaches the tips
+            finite = bool(np.isfinite(self.pos[:, -1]).all())
         except (ZeroDivisionError, FloatingPointError, OverflowError):
             finite = False
         if not finite:
@@ -458,6 +461,20 @@ class HairSimulator:
             self._substep(t - h + (k + 1) * h / n, h / n)
         self.counters['substeps'] += n
 
+    def _cache_constants(self):
+        """Build the kernels' constant bundles again (the parameters or rest lengths changed)."""
+        p = self.params
+        self._drag_factor = 0.5 * p.air_density * p.drag_coefficient * p.drag_width
+        self._spring_constants = F.SpringConstants(neighbor=p.neighbor_stiffness,
+                                                   wall=p.wall_stiffness,
+                                                   wall_distance=p.wall_distance,
+                                                   scalp=p.scalp_stiffness)
+        self._strip_springs = F.StripSprings(pairs=self.pairs, rest1=self.rest1,
+                                             wall_sign=self.wall_sign, rest3=self.rest3,
+                                             proj=self._proj)
+        self._constants_of = p
+        self._springs_rest3 = self.rest3
+
     def _substep(self, t, h):
         p = self.params
         c = self.counters
@@ -486,22 +503,23 @@ class HairSimulator:
         strands = self.strands
         forces = self.forces
         wind = self.wind
+        if self._constants_of is not p or self._springs_rest3 is not self.rest3:
+            self._cache_constants()
         F.external_forces(
             strands,
             self.root_acc,
             self.gravity,
-            F.WindField(velocity=wind.velocity, amplitude=wind.amplitude,
-                        mode_dir=wind.mode_dir, mode_k=wind.mode_k, mode_w=wind.mode_w,
-                        mode_phase=wind.mode_phase),
+            wind.field,
             wind.active,
             t,
-            0.5 * p.air_density * p.drag_coefficient * p.drag_width,
+            self._drag_factor,
             p.air_damping,
             self.solver.root_inertia,
             forces,
         )
         c['kernel_calls'] += 1
-        self.contact[:, :, :2] = 0.0
+        if self.solver.uses_contacts:
+            self.contact[:, :, :2] = 0.0
         if p.collisions:
             c['contacts'] += F.reaction_constraint_forces(
                 strands,
@@ -515,10 +533,8 @@ class HairSimulator:
             c['wall_springs'] += F.strip_springs(
                 strands,
                 bodies.spheres[:self.n_scalp],
-                F.StripSprings(pairs=self.pairs, rest1=self.rest1, wall_sign=self.wall_sign,
-                               rest3=self.rest3, proj=self._proj),
-                F.SpringConstants(neighbor=p.neighbor_stiffness, wall=p.wall_stiffness,
-                                  wall_distance=p.wall_distance, scalp=p.scalp_stiffness),
+                self._strip_springs,
+                self._spring_constants,
                 forces,
             )
             c['kernel_calls'] += 1

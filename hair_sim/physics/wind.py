@@ -2,6 +2,8 @@
 
 import numpy as np
 
+from hair_sim.physics.forces import WindField
+
 N_MODES = 8
 
 
@@ -30,11 +32,16 @@ class Wind:
         self.mode_phase = rng.uniform(0, 2 * np.pi, N_MODES)
         # each mode's amplitude so that the gusts' rms per axis is turbulence * |v|
         self.amplitude = turbulence * float(np.linalg.norm(v)) * np.sqrt(2.0 * 3.0 / N_MODES)
+        # what the force kernel takes, built once per change
+        self.field = WindField(velocity=self.velocity, amplitude=self.amplitude,
+                               mode_dir=self.mode_dir, mode_k=self.mode_k, mode_w=self.mode_w,
+                               mode_phase=self.mode_phase)
+        self._active = bool(np.any(self.velocity != 0.0))
 
     @property
     def active(self):
         """Return True when the wind exerts any force (a mean or gusts)."""
-        return bool(np.any(self.velocity != 0.0))
+        return self._active
 
     @property
     def steady(self):

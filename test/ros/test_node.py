@@ -101,6 +101,16 @@ def test_parameter_changes_take_effect_or_are_refused(node_env):
     res = node.set_parameters([Parameter('publish_rate', value=10.0)])
     assert res[0].successful and node.publish_timer.timer_period_ns == int(1e8)
     assert node.counts['params_refused'] >= 4          # (type and range: rclpy refuses first)
+    # the strand model switches at run time, from the current shape; a bad name is refused
+    res = node.set_parameters([Parameter('physics.model', value='rigid')])
+    assert not res[0].successful and 'model' in res[0].reason
+    res = node.set_parameters([Parameter('physics.model', value='articulated')])
+    assert res[0].successful and node.sim.params.model == 'articulated'
+    steps = node.sim.counters['steps']
+    assert spin_until(ex, lambda: node.sim.counters['steps'] > steps + 20, 10.0)
+    assert np.all(np.isfinite(node.sim.pos))
+    res = node.set_parameters([Parameter('physics.model', value='anjyo')])
+    assert res[0].successful and node.sim.params.model == 'anjyo'
 
 
 def test_services_load_edit_save_reload_reset(node_env, tmp_path):

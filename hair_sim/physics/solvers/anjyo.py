@@ -333,6 +333,7 @@ class AnjyoSolver:
 
     name = 'anjyo'
     root_inertia = True             # segments swing about roots taken as fixed: -m a_root
+    uses_contacts = False        # the contact record (implicit contacts) is not read
 
     def __init__(self, sim):
         n_s, n_seg = sim.length.shape

@@ -659,6 +659,7 @@ class ArticulatedSolver:
 
     name = 'articulated'
     root_inertia = False            # the base motion comes out of the dynamics
+    uses_contacts = True         # contacts are folded into the articulated inertia
 
     def __init__(self, sim):
         n_s, n_seg = sim.length.shape
