@@ -421,7 +421,7 @@ class HairSimulator:
         try:
             self._simulate(t, h)
             # vertices are placed root to tip, so a NaN anywhere reaches the tips
-            finite = bool(np.isfinite(self.pos[:, -1]).all())
+            finite = math.isfinite(self.pos[:, -1].sum())   # NaN and inf survive a sum
         except (ZeroDivisionError, FloatingPointError, OverflowError):
             finite = False
         if not finite:
