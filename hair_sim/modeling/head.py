@@ -36,6 +36,13 @@ class HeadModel:
     mesh: str = ''                     # optional display mesh (file name next to the head file)
     path: str = ''
 
+    def display_mesh(self):
+        """Return (vertices (n, 3), triangles (m, 3)) of the head's display mesh, or None."""
+        if not self.mesh:
+            return None
+        from hair_sim.modeling.glb import read_glb
+        return read_glb(os.path.join(os.path.dirname(os.path.abspath(self.path)), self.mesh))
+
     @property
     def collision(self):
         """All collision spheres: the scalp spheres first, then the body spheres."""
@@ -141,5 +148,13 @@ def load_head(path):
                          'name', where, 64)
     frame = fields.frame_id(data.get('frame_id', 'head'), 'frame_id', where)
     mesh = fields.string(data['mesh'], 'mesh', where, 200) if 'mesh' in data else ''
+    if mesh:
+        # a display mesh: a GLB file next to the head file (no paths: nothing else is read)
+        if os.path.basename(mesh) != mesh or mesh.startswith('.') \
+                or not mesh.lower().endswith('.glb'):
+            raise HairstyleError('%s: mesh must be the name of a .glb file next to the head '
+                                 'file, not %r' % (where, mesh))
+        # (a missing file is not an error here: the mesh is only drawn; the viewer falls
+        # back to the spheres and says why)
     return HeadModel(name=name, frame_id=frame, scalp=scalp, body=body,
                      projection_sphere=proj, hairline=hairline, mesh=mesh, path=path)

@@ -295,6 +295,9 @@ class HairSimNode(Node):
                 timer.timer_period_ns = int(1e9 / changed[name])
         if self.meshcat is not None and ('publish_rate' in changed or 'meshcat.rate' in changed):
             self.meshcat.rate = self._meshcat_rate()
+        if self.meshcat is not None and 'meshcat.show_spheres' in changed:
+            self.meshcat.show_spheres = bool(changed['meshcat.show_spheres'])
+            self.meshcat.set_head(self.sim.head)              # redrawn on the next frame
         if 'meshcat.enabled' in changed or 'meshcat.zmq_url' in changed:
             if self.meshcat is not None:
                 self.meshcat.stop()
@@ -645,7 +648,8 @@ class HairSimNode(Node):
 
         self.meshcat = MeshcatSink(self.sim.head, rate=self._meshcat_rate(),
                                    zmq_url=self._p('meshcat.zmq_url'),
-                                   logger=self.get_logger(), on_url=on_url).start()
+                                   logger=self.get_logger(), on_url=on_url,
+                                   show_spheres=self._p('meshcat.show_spheres')).start()
 
     def destroy_node(self):
         """Stop the workers, then destroy the node."""

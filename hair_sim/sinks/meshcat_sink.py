@@ -129,8 +129,10 @@ class MeshcatClient:
 class MeshcatSink:
     """Stream HairMesh frames to a meshcat viewer from a worker thread."""
 
-    def __init__(self, head, rate=20.0, zmq_url='', logger=None, on_url=None):
+    def __init__(self, head, rate=20.0, zmq_url='', logger=None, on_url=None,
+                 show_spheres=False):
         self.head = head
+        self.show_spheres = bool(show_spheres)     # the collision spheres, not the mesh
         self.rate = float(rate)
         self.zmq_url = zmq_url
         self.log = logger
@@ -197,16 +199,27 @@ class MeshcatSink:
         return client
 
     def _draw_static(self, client):
-        """Draw the head once (its spheres) and frame it with the camera."""
+        """Draw the head once (its mesh, or its collision spheres) and aim the camera."""
         from meshcat.commands import SetObject, SetProperty, SetTransform
         g, _ = _geometry_classes()
         import meshcat.transformations as tf
         skin = g.MeshLambertMaterial(color=0xddb49a)
-        for i, s in enumerate(self.head.collision):
-            obj = g.Mesh(g.Sphere(float(s[3])), skin)
-            path = node_path('/hair_sim/head/sphere_%d' % i)
-            client.send(SetObject(obj, path=path))
-            client.send(SetTransform(tf.translation_matrix(s[:3]), path))
+        mesh = None
+        if not self.show_spheres:
+            try:
+                mesh = self.head.display_mesh()
+            except (OSError, ValueError) as exc:
+                self._warn('head mesh %s unreadable (%s): drawing the spheres'
+                           % (self.head.mesh, exc))
+        if mesh is not None:
+            geom = g.TriangularMeshGeometry(mesh[0], mesh[1])
+            client.send(SetObject(g.Mesh(geom, skin), path=node_path('/hair_sim/head/mesh')))
+        else:
+            for i, s in enumerate(self.head.collision):
+                obj = g.Mesh(g.Sphere(float(s[3])), skin)
+                path = node_path('/hair_sim/head/sphere_%d' % i)
+                client.send(SetObject(obj, path=path))
+                client.send(SetTransform(tf.translation_matrix(s[:3]), path))
         # the camera: three-quarter from the front, CAMERA_DISTANCE from the head's centre,
         # a little above; the page's orbit target is the world origin, where _send_frame
         # keeps the head's centre (the camera's parent frame is y-up: [x, z, -y] of world)

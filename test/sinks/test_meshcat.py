@@ -113,3 +113,36 @@ def test_texture_reaches_meshcat_the_right_way_up():
     at_roots = sampled_alpha(sim.pos[:, 0])
     at_tips = sampled_alpha(sim.pos[:, -1])
     assert at_roots > at_tips + 50, (at_roots, at_tips)
+
+
+@pytest.mark.parametrize('show_spheres', [False, True, 'missing'])
+def test_head_is_drawn_as_its_mesh_or_its_spheres(show_spheres, tmp_path):
+    """The sink draws the head mesh once by default, the collision spheres when asked."""
+    from hair_sim import load_head, paths
+    from hair_sim.sinks.meshcat_sink import MeshcatSink
+
+    class Client:
+        def __init__(self):
+            self.sent = []
+
+        def send(self, cmd):
+            self.sent.append(cmd.lower())
+
+    head = load_head(paths.shipped_head('default_adult'))
+    if show_spheres == 'missing':                 # a head file copied without its mesh
+        copy = tmp_path / 'head.yaml'
+        copy.write_text(open(paths.shipped_head('default_adult')).read())
+        head = load_head(str(copy))
+    client = Client()
+    MeshcatSink(head, show_spheres=show_spheres is True)._draw_static(client)
+    objects = [c for c in client.sent if c['type'] == 'set_object']
+    paths_sent = [str(c['path']) for c in objects]
+    if show_spheres:                              # asked for, or the mesh is missing
+        assert len(objects) == len(head.collision)
+        assert all('sphere_' in p for p in paths_sent)
+    else:
+        assert paths_sent == ['/hair_sim/head/mesh']
+        geometry = objects[0]['object']['geometries'][0]
+        v, _ = head.display_mesh()
+        packed = geometry['data']['attributes']['position']['array']     # msgpack Ext
+        assert len(packed.data) == v.size * 4                            # float32 each
