@@ -13,6 +13,7 @@ import time as _time
 
 import numpy as np
 
+from hair_sim.modeling.head import MAX_SPHERES
 from hair_sim.modeling.strips import build_strips
 from hair_sim.physics import forces as F
 from hair_sim.physics.motion import HeadMotion, quat_to_matrix, rotation_vector
@@ -25,7 +26,6 @@ DEFAULT_DT = 1.0 / 240.0       # s: 4 steps per 60 Hz frame (pendulum period wit
 SUBSTEPS_PER_60HZ_FRAME = int(round(1.0 / (60.0 * DEFAULT_DT)))
 MAX_DT = 0.1
 STABILITY_MARGIN = 0.9         # explicit terms need omega * dt < 2 * margin
-MAX_SPHERES = 63               # collision spheres (a 64-bit mask per strand)
 SOLVERS = {'anjyo': AnjyoSolver, 'articulated': ArticulatedSolver}
 # The head counts as still (sleep may begin) below these
 STILL_SPEED = 1e-4             # m/s and rad/s
@@ -168,15 +168,18 @@ class HairSimulator:
         self._make_solver()
         self._place_at_rest()
 
-    def _make_solver(self):
+    def _derive_masses(self):
         self.mass = self.params.linear_density * self.length
         self.gravity = np.array([0.0, 0.0, -self.params.gravity])
+
+    def _make_solver(self):
+        """Build the strand model the parameters name (from masses derived first)."""
+        self._derive_masses()
         self.solver = SOLVERS[self.params.model](self)
 
     def _update_material(self):
         """Recompute masses and the model's constants from the parameters."""
-        self.mass = self.params.linear_density * self.length
-        self.gravity = np.array([0.0, 0.0, -self.params.gravity])
+        self._derive_masses()
         self.solver.update_material(self)
 
     # --------------------------------------------- the kernels' bundles (views, no copies)
@@ -278,18 +281,21 @@ class HairSimulator:
             self._wake('wind')
         return 'clamped' if clamped else 'ok'
 
-    def set_params(self, **changes):
+    def set_params(self, step_dt=None, **changes):
         """
         Change parameters (validated, stability-checked); the old ones stay on error.
 
-        A change of `model` starts the new model from the strands' current directions, at
-        rest.
+        step_dt: change the planned step too (see plan_step), checked with the new
+        parameters. A change of `model` starts the new model from the strands' current
+        directions, at rest.
         """
         new = self.params.replaced(**changes)
-        reason = stability_problem(new, self, self.stability_dt)
+        dt = self.stability_dt if step_dt is None else float(step_dt)
+        reason = stability_problem(new, self, dt)
         if reason:
             raise ValueError(reason)
         model_changed = new.model != self.params.model
+        self.stability_dt = dt
         self.params = new
         self.motion.params = new
         if model_changed:
@@ -538,7 +544,7 @@ class HairSimulator:
                 forces,
             )
             c['kernel_calls'] += 1
-        c['segment_updates'] += self.solver.step(self, h, head.R, self.roots)
+        c['segment_updates'] += self.solver.step(self, h, head)
         c['kernel_calls'] += 1
         c['awake_steps'] += 1
         self.state_version += 1

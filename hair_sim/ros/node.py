@@ -279,10 +279,12 @@ class HairSimNode(Node):
         validated = self._validated
         self._validated = None
         physics = {k[len(PHYSICS):]: v for k, v in changed.items() if k.startswith(PHYSICS)}
-        if 'sim_rate' in changed:
-            self.sim.plan_step(1.0 / float(changed['sim_rate']))     # checked in on_set
+        # on_set checked the new parameters at the new step together: apply them together
+        dt = 1.0 / float(changed['sim_rate']) if 'sim_rate' in changed else None
         if physics:
-            self.sim.set_params(**physics)
+            self.sim.set_params(step_dt=dt, **physics)
+        elif dt is not None:
+            self.sim.plan_step(dt)
         if 'hairstyle' in changed:
             style = validated[1] if validated and validated[0] == params_key(params) else None
             if style is None:

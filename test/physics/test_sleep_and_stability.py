@@ -121,3 +121,13 @@ def test_sleeping_hair_reuses_its_mesh(long_style):
     sim.step(DEFAULT_DT)
     b = renderer.mesh_of(sim)
     assert b is not a and not np.array_equal(a.vertices, b.vertices)
+
+
+def test_params_and_step_change_together_or_not_at_all(long_style):
+    """set_params(step_dt=...) checks the new parameters at the new step, all or nothing."""
+    sim = HairSimulator(long_style)
+    with pytest.raises(ValueError, match='unstable|needs dt'):
+        sim.set_params(step_dt=1 / 30, integrator='explicit')
+    assert sim.stability_dt == DEFAULT_DT and sim.params.integrator == 'implicit'
+    sim.set_params(step_dt=1 / 480, damping=8.0)
+    assert sim.stability_dt == 1 / 480 and sim.params.damping == 8.0

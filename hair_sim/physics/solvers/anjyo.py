@@ -390,15 +390,15 @@ class AnjyoSolver:
         """Return 1: the model takes every step whole (MAX_TURN clamps a step's turn)."""
         return 1
 
-    def step(self, sim, h, R, roots):
+    def step(self, sim, h, head):
         """Advance eqs. 1-6 by h with the forces in sim.forces; return segments updated."""
         p = sim.params
         return integrate_strands(
             self.state(),
             sim.strands,
             sim.forces,
-            R,
-            roots,
+            head.R,
+            sim.roots,
             sim.bodies,
             p.collisions,
             p.damping,

@@ -668,33 +668,32 @@ class ArticulatedSolver:
         self.alpha = np.zeros((n_s, n_seg, 3))
         # the modeled frames, twist-free from the head frame (head upright)
         self.modeled = frames_along(sim.modeled_dir, np.broadcast_to(np.eye(3), (n_s, 3, 3)))
+        # each joint's rest: the modeled child frame seen from the modeled parent frame
+        parents = np.concatenate([np.broadcast_to(np.eye(3), (n_s, 1, 3, 3)),
+                                  self.modeled[:, :-1]], axis=1)
+        self.rest_rel = np.ascontiguousarray(np.swapaxes(parents, -1, -2) @ self.modeled)
         self.update_material(sim)
 
     def update_material(self, sim):
-        """Recompute joint stiffness, damping, axial inertia and the sag-free rest."""
+        """Recompute joint stiffness, damping, axial inertia and the sag-free offsets."""
         p = sim.params
         k = p.bending_stiffness / sim.length
         k[:, 0] *= p.root_stiffness_scale
         self.k = np.ascontiguousarray(k)
         self.d = np.ascontiguousarray(p.damping * sim.mass * sim.length ** 2 / 3.0)
         self.inertia_axial = np.ascontiguousarray(0.5 * sim.mass * p.bundle_radius ** 2)
-        n_s = len(self.modeled)
-        parents = np.concatenate([np.broadcast_to(np.eye(3), (n_s, 1, 3, 3)),
-                                  self.modeled[:, :-1]], axis=1)
-        rest = np.swapaxes(parents, -1, -2) @ self.modeled
         if p.gravity_compensation:
             offset = sag_free_offsets(self.modeled, sim.length, sim.mass, self.k,
                                       [0.0, 0.0, -p.gravity])
         else:
             offset = np.zeros(self.modeled.shape[:2] + (3,))
         self.offset = np.ascontiguousarray(offset)
-        self.rest_rel = np.ascontiguousarray(rest)
 
     def state(self):
         """Return the kernel's view of the arrays, shared and not copied."""
         return ChainState(R=self.R, omega=self.omega, alpha=self.alpha, rest_rel=self.rest_rel,
-                          k=self.k,
-                          d=self.d, inertia_axial=self.inertia_axial, offset=self.offset)
+                          k=self.k, d=self.d, inertia_axial=self.inertia_axial,
+                          offset=self.offset)
 
     def place(self, sim, world_dir):
         """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""
@@ -736,14 +735,14 @@ class ArticulatedSolver:
             return 1                        # a diverged state: the simulator's check reports it
         return max(1, min(MAX_SUBSTEPS, int(np.ceil(h * fastest / MAX_STEP_ROTATION))))
 
-    def step(self, sim, h, R, roots):
+    def step(self, sim, h, head):
         """Advance every chain by h with the forces in sim.forces; return segments updated."""
         return step_chains(
             self.state(),
             sim.strands,
             sim.forces,
-            sim.head_kinematics,
-            roots,
+            head,
+            sim.roots,
             sim.root_vel,
             sim.root_acc,
             sim.bodies,
@@ -764,7 +763,7 @@ class ArticulatedSolver:
                      + 0.5 * (ip * w_perp2 + self.inertia_axial * wd ** 2).sum())
 
     def potential_energy(self, sim):
-        """Return the springs' energy (J): sum of k |e|^2 / 2 over the joints."""
+        """Return the springs' energy (J): sum of k |e - e0|^2 / 2 over the joints."""
         e = np.zeros(3)
         q = np.zeros((3, 3))
         total = 0.0
