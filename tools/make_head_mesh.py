@@ -57,12 +57,6 @@ def to_head_frame(v):
     return np.stack([v[:, 2], v[:, 0], v[:, 1]], axis=1)
 
 
-def scalp_distance(points, spheres):
-    """Return the signed distance of points to the union of spheres (negative inside)."""
-    d = np.linalg.norm(points[:, None, :] - spheres[None, :, :3], axis=2) - spheres[None, :, 3]
-    return d.min(axis=1)
-
-
 def fit(verts, tris, head):
     """
     Scale, place and crop the mesh onto `head`; return (vertices, triangles, report).
@@ -88,7 +82,7 @@ def fit(verts, tris, head):
                      scalp_top - INSIDE - v[cranium, 2].max() - dz]
             w = v + shift
             above = used[w[used, 2] > 0.0]
-            if scalp_distance(w[above], scalp).max() <= -INSIDE / 4:
+            if head.scalp_distance(w[above]).max() <= -INSIDE / 4:
                 break
         else:
             continue
@@ -100,7 +94,7 @@ def fit(verts, tris, head):
     remap[used] = np.arange(len(used))
     out_v, out_t = w[used].astype(np.float32), remap[tris].astype(np.uint32)
     above = out_v[:, 2] > 0.0
-    inside = -scalp_distance(out_v[above].astype(float), scalp).max()
+    inside = -head.scalp_distance(out_v[above]).max()
     report = {'vertices': len(out_v), 'triangles': len(out_t), 'metres_per_model_dm': base * k,
               'lowered_m': dz, 'cranium_inside_scalp_by_m': float(inside)}
     return out_v, out_t, report
