@@ -32,6 +32,7 @@ setup(
             'hair_sim_demo = hair_sim.ros.demo:main',
             'hair_sim_head_driver = hair_sim.ros.head_driver:main',
             'hair_sim_bench = hair_sim.bench.cli:main',
+            'hair_sim_head = hair_sim.modeling.head_tool:main',
         ],
     },
 )

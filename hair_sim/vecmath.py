@@ -3,6 +3,7 @@
 from math import sqrt
 
 from numba import njit
+import numpy as np
 
 
 @njit(cache=True)
@@ -52,4 +53,85 @@ def nearest_on_spheres_many(points, spheres, out):
     for i in range(points.shape[0]):
         out[i, 0], out[i, 1], out[i, 2] = nearest_on_spheres(points[i, 0], points[i, 1],
                                                              points[i, 2], spheres)
+    return out
+
+
+@njit(cache=True)
+def _dot(ax, ay, az, bx, by, bz):
+    return ax * bx + ay * by + az * bz
+
+
+@njit(cache=True)
+def _triangle_distance_sq(p, a, b, c):
+    """Squared distance from p to triangle abc (Ericson, Real-Time Collision Detection 5.1.5)."""
+    abx, aby, abz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    acx, acy, acz = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+    d1 = _dot(abx, aby, abz, p[0] - a[0], p[1] - a[1], p[2] - a[2])
+    d2 = _dot(acx, acy, acz, p[0] - a[0], p[1] - a[1], p[2] - a[2])
+    d3 = _dot(abx, aby, abz, p[0] - b[0], p[1] - b[1], p[2] - b[2])
+    d4 = _dot(acx, acy, acz, p[0] - b[0], p[1] - b[1], p[2] - b[2])
+    d5 = _dot(abx, aby, abz, p[0] - c[0], p[1] - c[1], p[2] - c[2])
+    d6 = _dot(acx, acy, acz, p[0] - c[0], p[1] - c[1], p[2] - c[2])
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    u = 0.0      # closest point a + u * ab + w * ac
+    w = 0.0
+    if d1 <= 0.0 and d2 <= 0.0:
+        pass
+    elif d3 >= 0.0 and d4 <= d3:
+        u = 1.0
+    elif d6 >= 0.0 and d5 <= d6:
+        w = 1.0
+    elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        u = d1 / (d1 - d3)
+    elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+    elif va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        u = 1.0 - w
+    else:
+        den = 1.0 / (va + vb + vc)
+        u = vb * den
+        w = vc * den
+    ex = p[0] - (a[0] + u * abx + w * acx)
+    ey = p[1] - (a[1] + u * aby + w * acy)
+    ez = p[2] - (a[2] + u * abz + w * acz)
+    return ex * ex + ey * ey + ez * ez
+
+
+@njit(cache=True)
+def distance_to_triangles(points, upper, vertices, triangles, out):
+    """
+    Write into out (n,) the exact distance of each point (n, 3) to a triangle mesh.
+
+    upper (n,) bounds each distance from above (np.inf when unknown); triangles whose
+    bounding sphere lies farther are skipped, which is what makes a good bound pay.
+    """
+    nt = triangles.shape[0]
+    centre = np.empty((nt, 3))
+    reach = np.empty(nt)
+    for t in range(nt):
+        for k in range(3):
+            centre[t, k] = (vertices[triangles[t, 0], k] + vertices[triangles[t, 1], k]
+                            + vertices[triangles[t, 2], k]) / 3.0
+        r = 0.0
+        for j in range(3):
+            v = vertices[triangles[t, j]]
+            r = max(r, sqrt((v[0] - centre[t, 0]) ** 2 + (v[1] - centre[t, 1]) ** 2
+                            + (v[2] - centre[t, 2]) ** 2))
+        reach[t] = r
+    for i in range(points.shape[0]):
+        p = points[i]
+        best = upper[i] * upper[i] if upper[i] < 1e150 else 1e300
+        for t in range(nt):
+            lower = sqrt((p[0] - centre[t, 0]) ** 2 + (p[1] - centre[t, 1]) ** 2
+                         + (p[2] - centre[t, 2]) ** 2) - reach[t]
+            if lower > 0.0 and lower * lower >= best:
+                continue
+            d = _triangle_distance_sq(p, vertices[triangles[t, 0]], vertices[triangles[t, 1]],
+                                      vertices[triangles[t, 2]])
+            if d < best:
+                best = d
+        out[i] = sqrt(best)
     return out
