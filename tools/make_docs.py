@@ -30,14 +30,16 @@ def main():
         sim.step(DEFAULT_DT)
     print(views_png(sim, os.path.join(doc, 'ushape_views.png')))
     print(meshcat_png(os.path.join(doc, 'meshcat.png')))
+    print(meshcat_png(os.path.join(doc, 'meshcat_front.png'), view='front'))
 
 
-def meshcat_png(path):
+def meshcat_png(path, view='three_quarter'):
     """Run the demo, screenshot its meshcat page with headless Chromium, stop the demo."""
     import subprocess
     import time
     demo = subprocess.Popen([os.path.join(os.path.dirname(sys.executable), 'hair_sim_demo'),
-                             '--duration', '60'], stdout=subprocess.PIPE,
+                             '--duration', '60', '--ros-args', '-p', 'meshcat.view:=' + view],
+                            stdout=subprocess.PIPE,
                             stderr=subprocess.DEVNULL, text=True)
     try:
         url = None

@@ -34,7 +34,8 @@ import rclpy
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+from rclpy.qos import (DurabilityPolicy, qos_profile_sensor_data, QoSProfile,
+                       ReliabilityPolicy)
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
@@ -49,7 +50,9 @@ from hair_sim.physics.simulator import HairSimulator, SimulationDiverged, stabil
 from hair_sim.render.mesh import HairRenderer
 from hair_sim.ros.params import all_parameters, PHYSICS
 from hair_sim.ros.scene import Scene, SceneBuilder
-from hair_sim.sinks.markers import delete_all_markers, MarkerEncoder, MarkerLayout
+from hair_sim.sinks.markers import (delete_all_markers, head_marker_cdr, head_sphere_markers,
+                                    MarkerEncoder, MarkerLayout)
+from hair_sim.sinks.meshcat_sink import CAMERA_VIEWS
 from hair_sim.sinks.mesh_msg import hair_mesh_cdr, hair_state_cdr
 
 LATENCY_WINDOW = 600            # publishes kept for the latency percentiles
@@ -113,6 +116,9 @@ class HairSimNode(Node):
             sim.plan_step(1.0 / self._p('sim_rate'))
         except ValueError as exc:
             raise ValueError('physics parameters refused: %s' % exc) from None
+        if self._p('meshcat.view') not in CAMERA_VIEWS:
+            raise ValueError('meshcat.view must be one of %s, not %r'
+                             % (', '.join(CAMERA_VIEWS), self._p('meshcat.view')[:40]))
         self.scene = Scene(1, sim, HairRenderer.for_simulator(sim))
         self._committed = 0               # seq of the last build job swapped in
         self._encoder = None
@@ -134,6 +140,10 @@ class HairSimNode(Node):
         self.create_subscription(Wind, 'wind', self._on_wind, 10)
         reliable = QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE)
         self.pub_markers = self.create_publisher(MarkerArray, 'hair_markers', reliable)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.pub_head = self.create_publisher(MarkerArray, 'head_markers', latched)
+        self._head_key = None
         self.pub_mesh = self.create_publisher(HairMesh, 'hair_mesh', reliable)
         self.pub_state = self.create_publisher(HairState, 'hair_state', reliable)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
@@ -242,6 +252,9 @@ class HairSimNode(Node):
                 not new['meshcat.zmq_url'].startswith('tcp://')
                 or len(new['meshcat.zmq_url']) > 200):
             return self._param_refused('meshcat.zmq_url must be empty or tcp://host:port')
+        if 'meshcat.view' in new and new['meshcat.view'] not in CAMERA_VIEWS:
+            return self._param_refused('meshcat.view must be one of %s, not %r' % (
+                ', '.join(CAMERA_VIEWS), new['meshcat.view'][:40]))
         physics = {k[len(PHYSICS):]: v for k, v in new.items() if k.startswith(PHYSICS)}
         rates = self._rates({k: new[k] for k in ('sim_rate', 'publish_rate') if k in new})
         rates['model'] = physics.get('model', rates['model'])
@@ -297,8 +310,10 @@ class HairSimNode(Node):
                 timer.timer_period_ns = int(1e9 / changed[name])
         if self.meshcat is not None and ('publish_rate' in changed or 'meshcat.rate' in changed):
             self.meshcat.rate = self._meshcat_rate()
-        if self.meshcat is not None and 'meshcat.show_spheres' in changed:
-            self.meshcat.show_spheres = bool(changed['meshcat.show_spheres'])
+        if self.meshcat is not None and ('meshcat.show_spheres' in changed
+                                         or 'meshcat.view' in changed):
+            self.meshcat.show_spheres = self._p('meshcat.show_spheres')
+            self.meshcat.view = self._p('meshcat.view')
             self.meshcat.set_head(self.sim.head)              # redrawn on the next frame
         if 'meshcat.enabled' in changed or 'meshcat.zmq_url' in changed:
             if self.meshcat is not None:
@@ -563,9 +578,29 @@ class HairSimNode(Node):
     def _viewpoint(self):
         return [float(v) for v in self._p('viewpoint')] if self._p('use_viewpoint') else None
 
+    def _publish_head(self, sec, nsec):
+        """Send the head's display mesh (or its spheres) once per head on head_markers."""
+        head = self.scene.style.head
+        key = (head.path, head.mesh, self.head_frame)
+        if key == self._head_key:
+            return
+        self._head_key = key
+        try:
+            mesh = head.display_mesh()
+        except (OSError, ValueError) as exc:   # GlbError is a ValueError
+            self.counts['head_mesh_unreadable'] += 1
+            self.get_logger().warning('head %s: display mesh %r not drawn (%s); RViz gets '
+                                      'the collision spheres' % (head.name, head.mesh, exc))
+            mesh = None
+        if mesh is not None:
+            self.pub_head.publish(head_marker_cdr(mesh[0], mesh[1], self.head_frame, sec, nsec))
+        else:
+            self.pub_head.publish(head_sphere_markers(head.collision, self.head_frame, sec, nsec))
+
     def _publish_markers(self, sec, nsec):
         if not self._p('publish_markers'):
             return
+        self._publish_head(sec, nsec)
         scene = self.scene
         mesh = scene.mesh(self._viewpoint())
         in_head = self._p('markers_in_head_frame')
@@ -651,7 +686,8 @@ class HairSimNode(Node):
         self.meshcat = MeshcatSink(self.sim.head, rate=self._meshcat_rate(),
                                    zmq_url=self._p('meshcat.zmq_url'),
                                    logger=self.get_logger(), on_url=on_url,
-                                   show_spheres=self._p('meshcat.show_spheres')).start()
+                                   show_spheres=self._p('meshcat.show_spheres'),
+                                   view=self._p('meshcat.view')).start()
 
     def destroy_node(self):
         """Stop the workers, then destroy the node."""

@@ -35,6 +35,8 @@ NODE_PARAMETERS = {
     'meshcat.enabled': (False, 'stream the hair to a meshcat viewer', None),
     'meshcat.rate': (20.0, 'meshcat frames per second', (0.5, 120.0)),
     'meshcat.zmq_url': ('', 'meshcat server to use; empty starts one', None),
+    'meshcat.view': ('three_quarter', 'meshcat camera, 0.45 m from the head: three_quarter, '
+                     'front, side or back', None),
     'meshcat.show_spheres': (False, 'draw the collision spheres instead of the head mesh '
                              '(for tuning collisions)', None),
 }

@@ -23,6 +23,9 @@ from hair_sim.sinks.cdr import CdrWriter
 TRIANGLE_LIST = 11
 MAX_POINTS = 65000
 NAMESPACE = 'hair'
+HEAD_NAMESPACE = 'head'
+SKIN_RGB = 0xddb49a                  # the head's colour, in meshcat too
+HEAD_COLOR = tuple(((SKIN_RGB >> k) & 0xff) / 255.0 for k in (16, 8, 0)) + (1.0,)
 
 
 class MarkerLayout:
@@ -85,6 +88,61 @@ def marker_geometry(mesh, R, p, layout):
             for g in layout.groups]
 
 
+def _write_triangle_list(w, ns, mid, points, uvs, color, resource, texture_png, frame_id,
+                         sec, nanosec, frame_locked):
+    """
+    Write one TRIANGLE_LIST visualization_msgs/Marker.
+
+    Return ((offsets of its two stamps), offset of its points, point count).
+    """
+    stamps = [w.offset_of_next(4)]
+    w.header(sec, nanosec, frame_id)
+    w.string(ns)
+    w.int32(mid)
+    w.int32(TRIANGLE_LIST)
+    w.int32(0)                                   # ADD
+    for v in (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0):  # pose: identity
+        w.float64(v)
+    for v in (1.0, 1.0, 1.0):                    # scale
+        w.float64(v)
+    for v in color:                              # color (white: the texture as it is)
+        w.float32(v)
+    w.time(0, 0)                                 # lifetime: for ever
+    w.boolean(frame_locked)                      # frame_locked
+    start = w.array(np.asarray(points, dtype='<f8'), 8)   # geometry_msgs/Point[]
+    w.uint32(0)                                  # colors[]
+    w.string(resource)
+    stamps.append(w.offset_of_next(4))
+    w.header(sec, nanosec, frame_id)             # texture: sensor_msgs/CompressedImage
+    w.string('png' if texture_png else '')
+    w.octets(texture_png)
+    w.array(np.asarray(uvs, dtype='<f4'), 4)     # UVCoordinate[]
+    w.string('')                                 # text
+    w.string('')                                 # mesh_resource
+    w.string('')                                 # mesh_file.filename
+    w.uint32(0)                                  # mesh_file.data
+    w.boolean(False)                             # mesh_use_embedded_materials
+    return stamps, start, len(points)
+
+
+def head_marker_cdr(vertices, triangles, frame_id, sec, nanosec, color=HEAD_COLOR):
+    """
+    Return the serialized MarkerArray of a head's display mesh (skin-coloured markers).
+
+    Points are in the head frame with frame_locked set, so RViz carries the head with the
+    head's TF frame; it is sent once per head (a latched topic), not per frame.
+    """
+    points = np.asarray(vertices, dtype=np.float64)[np.asarray(triangles).reshape(-1)]
+    per_marker = MAX_POINTS - MAX_POINTS % 3
+    chunks = [points[i:i + per_marker] for i in range(0, len(points), per_marker)]
+    w = CdrWriter()
+    w.uint32(len(chunks))
+    for mid, chunk in enumerate(chunks):
+        _write_triangle_list(w, HEAD_NAMESPACE, mid, chunk, np.zeros((0, 2), np.float32),
+                             color, '', b'', frame_id, sec, nanosec, True)
+    return w.bytes()
+
+
 def marker_array_cdr(geometry, texture_id, texture_png, frame_id, sec, nanosec,
                      with_padding=False, offsets=None, frame_locked=False):
     """
@@ -97,35 +155,11 @@ def marker_array_cdr(geometry, texture_id, texture_png, frame_id, sec, nanosec,
     w.uint32(len(geometry))
     resource = 'embedded://%s.png' % texture_id
     for mid, (points, uvs) in enumerate(geometry):
-        stamps = [w.offset_of_next(4)]
-        w.header(sec, nanosec, frame_id)
-        w.string(NAMESPACE)
-        w.int32(mid)
-        w.int32(TRIANGLE_LIST)
-        w.int32(0)                                   # ADD
-        for v in (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0):  # pose: identity
-            w.float64(v)
-        for v in (1.0, 1.0, 1.0):                    # scale
-            w.float64(v)
-        for v in (1.0, 1.0, 1.0, 1.0):               # color: texture as it is
-            w.float32(v)
-        w.time(0, 0)                                 # lifetime: for ever
-        w.boolean(frame_locked)                      # frame_locked
-        start = w.array(np.asarray(points, dtype='<f8'), 8)   # geometry_msgs/Point[]
-        w.uint32(0)                                  # colors[]
-        w.string(resource)
-        stamps.append(w.offset_of_next(4))
-        w.header(sec, nanosec, frame_id)             # texture: sensor_msgs/CompressedImage
-        w.string('png')
-        w.octets(texture_png)
-        w.array(np.asarray(uvs, dtype='<f4'), 4)     # UVCoordinate[]
-        w.string('')                                 # text
-        w.string('')                                 # mesh_resource
-        w.string('')                                 # mesh_file.filename
-        w.uint32(0)                                  # mesh_file.data
-        w.boolean(False)                             # mesh_use_embedded_materials
+        where = _write_triangle_list(w, NAMESPACE, mid, points, uvs, (1.0, 1.0, 1.0, 1.0),
+                                     resource, texture_png, frame_id, sec, nanosec,
+                                     frame_locked)
         if offsets is not None:
-            offsets.append((stamps, start, len(points)))
+            offsets.append(where)
     return w.bytes() if not with_padding else (w.bytes(), w.padding)
 
 
@@ -181,6 +215,27 @@ def delete_all_markers(frame_id, sec, nanosec):
     m.ns = NAMESPACE
     m.action = Marker.DELETEALL
     return MarkerArray(markers=[m])
+
+
+def head_sphere_markers(spheres, frame_id, sec, nanosec, color=HEAD_COLOR):
+    """Return a MarkerArray of SPHERE markers, one per collision sphere (no display mesh)."""
+    from visualization_msgs.msg import Marker, MarkerArray
+    arr = MarkerArray()
+    for mid, s in enumerate(spheres):
+        m = Marker()
+        m.header.stamp.sec, m.header.stamp.nanosec = sec, nanosec
+        m.header.frame_id = frame_id
+        m.ns = HEAD_NAMESPACE
+        m.id = mid
+        m.type = Marker.SPHERE
+        m.action = Marker.ADD
+        m.frame_locked = True
+        m.pose.position.x, m.pose.position.y, m.pose.position.z = (float(x) for x in s[:3])
+        m.pose.orientation.w = 1.0
+        m.scale.x = m.scale.y = m.scale.z = 2.0 * float(s[3])
+        m.color.r, m.color.g, m.color.b, m.color.a = color
+        arr.markers.append(m)
+    return arr
 
 
 def build_marker_array(geometry, texture_id, texture_png, frame_id, sec, nanosec,

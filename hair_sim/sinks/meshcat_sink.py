@@ -15,6 +15,8 @@ import time
 
 import numpy as np
 
+from hair_sim.sinks.markers import SKIN_RGB
+
 SERVER_START_TIMEOUT = 20.0
 REPLY_TIMEOUT_MS = 3000
 RETRY_PERIOD = 2.0
@@ -130,9 +132,10 @@ class MeshcatSink:
     """Stream HairMesh frames to a meshcat viewer from a worker thread."""
 
     def __init__(self, head, rate=20.0, zmq_url='', logger=None, on_url=None,
-                 show_spheres=False):
+                 show_spheres=False, view='three_quarter'):
         self.head = head
         self.show_spheres = bool(show_spheres)     # the collision spheres, not the mesh
+        self.view = view                           # a CAMERA_VIEWS name
         self.rate = float(rate)
         self.zmq_url = zmq_url
         self.log = logger
@@ -203,7 +206,7 @@ class MeshcatSink:
         from meshcat.commands import SetObject, SetProperty, SetTransform
         g, _ = _geometry_classes()
         import meshcat.transformations as tf
-        skin = g.MeshLambertMaterial(color=0xddb49a)
+        skin = g.MeshLambertMaterial(color=SKIN_RGB)
         mesh = None
         if not self.show_spheres:
             try:
@@ -220,10 +223,11 @@ class MeshcatSink:
                 path = node_path('/hair_sim/head/sphere_%d' % i)
                 client.send(SetObject(obj, path=path))
                 client.send(SetTransform(tf.translation_matrix(s[:3]), path))
-        # the camera: three-quarter from the front, CAMERA_DISTANCE from the head's centre,
-        # a little above; the page's orbit target is the world origin, where _send_frame
-        # keeps the head's centre (the camera's parent frame is y-up: [x, z, -y] of world)
-        x, y, z = CAMERA_DISTANCE * CAMERA_DIRECTION
+        # the camera: from the view's direction (three-quarter from the front by default),
+        # CAMERA_DISTANCE from the head's centre; the page's orbit target is the world
+        # origin, where _send_frame keeps the head's centre (the camera's parent frame is
+        # y-up: [x, z, -y] of world)
+        x, y, z = CAMERA_DISTANCE * CAMERA_VIEWS[self.view]
         client.send(SetProperty('position', [x, z, -y],
                                 node_path('/Cameras/default/rotated/<object>')))
         for clutter in ('/Grid', '/Axes'):
@@ -311,7 +315,10 @@ def hair_object(mesh):
 
 
 CAMERA_DISTANCE = 0.45                  # m from the head's centre
-CAMERA_DIRECTION = np.array([0.68, -0.68, 0.27]) / np.linalg.norm([0.68, -0.68, 0.27])
+# where the camera looks from (head's centre to camera, world axes; x is the face's side)
+CAMERA_VIEWS = {name: np.array(d) / np.linalg.norm(d) for name, d in (
+    ('three_quarter', [0.68, -0.68, 0.27]), ('front', [1.0, 0.0, 0.12]),
+    ('side', [0.0, -1.0, 0.12]), ('back', [-1.0, 0.0, 0.2]))}
 
 CHROMIUM_FLAGS = ['--headless', '--no-sandbox', '--use-gl=swiftshader',
                   '--enable-unsafe-swiftshader', '--disable-background-networking',

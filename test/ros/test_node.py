@@ -69,6 +69,25 @@ def test_markers_and_mesh_are_published_consistently(node_env):
     assert {x.header.frame_id for x in m.markers} == {node.get_parameter('world_frame').value}
 
 
+def test_head_markers_reach_a_late_subscriber(node_env):
+    """head_markers is latched: a subscriber that joins later gets the head mesh once."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from visualization_msgs.msg import MarkerArray
+    _, ex, node, client = node_env
+    assert spin_until(ex, lambda: node.counts['markers_published'] > 3, 20.0)
+    heads = []
+    qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    client.create_subscription(MarkerArray, 'head_markers', heads.append, qos)
+    assert spin_until(ex, lambda: heads, 10.0)
+    spin_until(ex, lambda: False, 1.0)
+    assert len(heads) == 1                       # sent once per head, not per frame
+    v, t = node.scene.style.head.display_mesh()
+    m = heads[0].markers
+    assert sum(len(x.points) for x in m) == 3 * len(t)
+    assert {x.header.frame_id for x in m} == {node.head_frame} and all(x.frame_locked for x in m)
+
+
 def test_parameter_changes_take_effect_or_are_refused(node_env):
     """Valid changes apply on the next step; out of range, mistyped or unstable ones don't."""
     _, ex, node, _ = node_env
@@ -78,7 +97,8 @@ def test_parameter_changes_take_effect_or_are_refused(node_env):
                           (Parameter('physics.damping', value='soft'), 'Wrong parameter type'),
                           (Parameter('publish_rate', value=0.0), 'publish_rate'),
                           (Parameter('physics.integrator', value='rk4'), 'integrator'),
-                          (Parameter('viewpoint', value=[0.0, float('nan'), 1.0]), 'finite')]:
+                          (Parameter('viewpoint', value=[0.0, float('nan'), 1.0]), 'finite'),
+                          (Parameter('meshcat.view', value='sideways'), 'meshcat.view')]:
         res = node.set_parameters([prm])
         assert not res[0].successful and fragment in res[0].reason, (prm.name, res[0].reason)
     res = node.set_parameters_atomically([Parameter('physics.integrator', value='explicit'),
@@ -87,6 +107,8 @@ def test_parameter_changes_take_effect_or_are_refused(node_env):
     assert node.sim.params.integrator == 'implicit' and node.sim.params.damping == 8.0
     res = node.set_parameters([Parameter('physics.integrator', value='explicit')])
     assert res[0].successful and node.sim.params.integrator == 'explicit'
+    res = node.set_parameters([Parameter('meshcat.view', value='front')])
+    assert res[0].successful
     # bob_fringe's short stiff segments are unstable with explicit at 240 Hz: refused whole
     res = node.set_parameters([Parameter('hairstyle', value='bob_fringe')])
     assert not res[0].successful and 'unstable' in res[0].reason

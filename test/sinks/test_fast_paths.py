@@ -125,3 +125,26 @@ def test_marker_encoder_matches_the_slow_path_frame_after_frame():
         slow = build_marker_array(marker_geometry(mesh, R, p, layout), mesh.texture_id,
                                   mesh.texture_png, 'head', 100 + k, 7)
         assert deserialize_message(fast, MarkerArray) == slow
+
+
+def test_head_marker_bytes_deserialize_to_the_display_mesh():
+    """head_markers: a skin-coloured TRIANGLE_LIST of the GLB, head frame, frame-locked."""
+    from visualization_msgs.msg import Marker, MarkerArray
+    from hair_sim import load_head, paths
+    from hair_sim.sinks.markers import head_marker_cdr, HEAD_COLOR, MAX_POINTS
+    head = load_head(paths.shipped_head('default_adult'))
+    v, t = head.display_mesh()
+    arr = deserialize_message(head_marker_cdr(v, t, 'head', 5, 6), MarkerArray)
+    points = np.array([[p.x, p.y, p.z] for m in arr.markers for p in m.points])
+    np.testing.assert_array_equal(points, v[t.reshape(-1)])
+    for m in arr.markers:
+        assert m.type == Marker.TRIANGLE_LIST and m.frame_locked and m.ns == 'head'
+        assert m.header.frame_id == 'head' and m.header.stamp.sec == 5
+        assert len(m.points) % 3 == 0 and len(m.points) < MAX_POINTS
+        assert np.allclose([m.color.r, m.color.g, m.color.b, m.color.a], HEAD_COLOR)
+        assert not m.texture_resource and not m.uv_coordinates
+    # a mesh over one marker's limit is split on triangle boundaries, nothing lost
+    big_t = np.tile(t, (3, 1))
+    arr = deserialize_message(head_marker_cdr(v, big_t, 'head', 0, 0), MarkerArray)
+    assert len(arr.markers) == 2 and [m.id for m in arr.markers] == [0, 1]
+    assert sum(len(m.points) for m in arr.markers) == 3 * len(big_t)

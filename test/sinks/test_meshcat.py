@@ -146,3 +146,31 @@ def test_head_is_drawn_as_its_mesh_or_its_spheres(show_spheres, tmp_path):
         v, _ = head.display_mesh()
         packed = geometry['data']['attributes']['position']['array']     # msgpack Ext
         assert len(packed.data) == v.size * 4                            # float32 each
+
+
+@pytest.mark.parametrize('view,axis', [('front', [1, 0, 0]), ('side', [0, -1, 0]),
+                                       ('back', [-1, 0, 0]),
+                                       ('three_quarter', [0.7071, -0.7071, 0])])
+def test_camera_looks_from_the_named_view(view, axis):
+    """The camera sits 0.45 m from the head's centre, on the named side of the face (+x)."""
+    from hair_sim import load_head, paths
+    from hair_sim.sinks.meshcat_sink import MeshcatSink
+
+    class Client:
+        def __init__(self):
+            self.sent = []
+
+        def send(self, cmd):
+            self.sent.append(cmd.lower())
+
+    client = Client()
+    MeshcatSink(load_head(paths.shipped_head('default_adult')), view=view)._draw_static(client)
+    cam = [c for c in client.sent if c['type'] == 'set_property' and c['property'] == 'position'
+           and 'Cameras/default' in str(c['path'])]
+    assert len(cam) == 1
+    x, up, minus_y = cam[0]['value']                 # three.js y-up: [x, z, -y] of world
+    world = np.array([x, -minus_y, up])
+    assert abs(np.linalg.norm(world) - 0.45) < 1e-9
+    horizontal = world[:2] / np.linalg.norm(world[:2])
+    assert np.dot(horizontal, np.array(axis[:2]) / np.linalg.norm(axis[:2])) > 0.99
+    assert 0.0 < world[2] < 0.2                      # a little above the head's centre
