@@ -54,6 +54,14 @@ WindField = namedtuple('WindField', ['velocity', 'amplitude', 'mode_dir', 'mode_
 StripSprings = namedtuple('StripSprings', ['pairs', 'rest1', 'wall_sign', 'rest3', 'proj'])
 SpringConstants = namedtuple('SpringConstants', ['neighbor', 'wall', 'wall_distance',
                                                  'scalp'])
+# where the roots and spheres sit on the head, and where they are this step
+Attachment = namedtuple('Attachment', ['root_head', 'spheres_head', 'reach', 'roots',
+                                       'root_vel', 'root_acc'])
+# what one step of the shared forces needs besides the state (scalars, built per step)
+ForceSettings = namedtuple('ForceSettings', ['t', 'gravity', 'wind_on', 'drag_factor',
+                                             'air_damping', 'collisions', 'broad_phase',
+                                             'collision_stiffness', 'collision_damping',
+                                             'inter_strip', 'n_scalp'])
 
 
 @njit(cache=True)

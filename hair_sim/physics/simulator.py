@@ -81,6 +81,7 @@ class HairSimulator:
         self.last_step_time = 0.0
         self.stability_dt = DEFAULT_DT      # the step set_params checks stability at
         self.state_version = 0              # bumped whenever positions may have changed
+        self.layout_version = 0             # bumped whenever a kernel argument's type may change
         self.broad_phase = True             # skip spheres a strand cannot reach
         self._R = np.eye(3)
         self._p = np.zeros(3)
@@ -122,6 +123,7 @@ class HairSimulator:
 
     def _set_geometry(self, style, rest, head, pairs):
         """Build every per-segment array from rest strands (head frame)."""
+        self.layout_version += 1
         if len(head.collision) > MAX_SPHERES:
             raise ValueError('at most %d collision spheres are supported' % MAX_SPHERES)
         F.guard_rest_shape(rest, np.ascontiguousarray(head.collision))
@@ -198,6 +200,13 @@ class HairSimulator:
     def bodies(self):
         """Return the collision spheres in the world, their velocities and the masks."""
         return F.Bodies(spheres=self._spheres, sphere_vel=self._sphere_vel, masks=self.masks)
+
+    @property
+    def attachment(self):
+        """Return where roots and spheres sit on the head and where they are this step."""
+        return F.Attachment(root_head=self.root_head, spheres_head=self.spheres_head,
+                            reach=self.reach, roots=self.roots, root_vel=self.root_vel,
+                            root_acc=self.root_acc)
 
     @property
     def head_kinematics(self):
@@ -277,6 +286,7 @@ class HairSimulator:
         turbulence = min(max(float(turbulence), 0.0), 1.0)
         old = (self.wind.velocity.copy(), self.wind.turbulence, self.wind.seed)
         self.wind.set(v, turbulence, seed)
+        self.layout_version += 1
         if not (np.array_equal(old[0], v) and old[1] == turbulence and old[2] == self.wind.seed):
             self._wake('wind')
         return 'clamped' if clamped else 'ok'
@@ -469,6 +479,7 @@ class HairSimulator:
 
     def _cache_constants(self):
         """Build the kernels' constant bundles again (the parameters or rest lengths changed)."""
+        self.layout_version += 1
         p = self.params
         self._drag_factor = 0.5 * p.air_density * p.drag_coefficient * p.drag_width
         self._spring_constants = F.SpringConstants(neighbor=p.neighbor_stiffness,
@@ -484,74 +495,104 @@ class HairSimulator:
     def _substep(self, t, h):
         p = self.params
         c = self.counters
-        head = self.head_kinematics
-        bodies = self.bodies
-        F.root_kinematics(
-            head,
-            self.root_head,
-            self.spheres_head,
-            self.roots,
-            self.root_vel,
-            self.root_acc,
-            bodies,
-        )
-        if p.collisions:
-            if self.broad_phase:
-                c['broad_phase_checks'] += F.strand_sphere_masks(
-                    self.roots,
-                    self.reach,
-                    bodies.spheres,
-                    self.masks,
-                )
-            else:                          # every sphere tested against every strand
-                self.masks[:] = (np.int64(1) << np.int64(len(bodies.spheres))) - 1
-        self.solver.velocities(self, self.last_dt)
-        strands = self.strands
-        forces = self.forces
-        wind = self.wind
         if self._constants_of is not p or self._springs_rest3 is not self.rest3:
             self._cache_constants()
-        F.external_forces(
-            strands,
-            self.root_acc,
-            self.gravity,
-            wind.field,
-            wind.active,
-            t,
-            self._drag_factor,
-            p.air_damping,
-            self.solver.root_inertia,
-            forces,
+        head = self.head_kinematics
+        bodies = self.bodies
+        settings = F.ForceSettings(
+            t=t,
+            gravity=self.gravity,
+            wind_on=self.wind.active,
+            drag_factor=self._drag_factor,
+            air_damping=p.air_damping,
+            collisions=p.collisions,
+            broad_phase=self.broad_phase,
+            collision_stiffness=p.collision_stiffness,
+            collision_damping=p.collision_damping,
+            inter_strip=p.inter_strip,
+            n_scalp=self.n_scalp,
         )
-        c['kernel_calls'] += 1
-        if self.solver.uses_contacts:
-            self.contact[:, :, :2] = 0.0
-        if p.collisions:
-            c['contacts'] += F.reaction_constraint_forces(
-                strands,
-                bodies,
-                p.collision_stiffness,
-                p.collision_damping,
-                forces,
-            )
+        if self.solver.fused:                  # the whole step in one kernel call
+            checks, contacts, walls, segments = self.solver.substep(self, h, head, bodies,
+                                                                    settings)
             c['kernel_calls'] += 1
-        if p.inter_strip and len(self.pairs):
-            c['wall_springs'] += F.strip_springs(
-                strands,
-                bodies.spheres[:self.n_scalp],
-                self._strip_springs,
-                self._spring_constants,
-                forces,
-            )
-            c['kernel_calls'] += 1
-        c['segment_updates'] += self.solver.step(self, h, head)
-        c['kernel_calls'] += 1
+        else:
+            checks, contacts, walls, segments = self._substep_by_kernel(h, head, bodies,
+                                                                        settings)
+        c['broad_phase_checks'] += checks
+        c['contacts'] += contacts
+        c['wall_springs'] += walls
+        c['segment_updates'] += segments
         c['awake_steps'] += 1
         self.state_version += 1
         c['recharts'] = int(self.stats[F.RECHARTS])
         c['guard_moves'] = int(self.stats[F.GUARD_MOVES])
         c['turn_clamps'] = int(self.stats[F.TURN_CLAMPS])
         self.last_dt = h
+
+    def _substep_by_kernel(self, h, head, bodies, settings):
+        """Run the shared force kernels one by one, then the model's step (see _substep)."""
+        c = self.counters
+        attach = self.attachment
+        F.root_kinematics(
+            head,
+            attach.root_head,
+            attach.spheres_head,
+            attach.roots,
+            attach.root_vel,
+            attach.root_acc,
+            bodies,
+        )
+        checks = contacts = walls = 0
+        if settings.collisions:
+            if settings.broad_phase:
+                checks = F.strand_sphere_masks(
+                    attach.roots,
+                    attach.reach,
+                    bodies.spheres,
+                    bodies.masks,
+                )
+            else:                          # every sphere tested against every strand
+                bodies.masks[:] = (np.int64(1) << np.int64(len(bodies.spheres))) - 1
+        self.solver.velocities(self, self.last_dt)
+        strands = self.strands
+        forces = self.forces
+        F.external_forces(
+            strands,
+            attach.root_acc,
+            settings.gravity,
+            self.wind.field,
+            settings.wind_on,
+            settings.t,
+            settings.drag_factor,
+            settings.air_damping,
+            self.solver.root_inertia,
+            forces,
+        )
+        c['kernel_calls'] += 1
+        if self.solver.uses_contacts:
+            self.contact[:, :, :2] = 0.0
+        if settings.collisions:
+            contacts = F.reaction_constraint_forces(
+                strands,
+                bodies,
+                settings.collision_stiffness,
+                settings.collision_damping,
+                forces,
+            )
+            c['kernel_calls'] += 1
+        if settings.inter_strip and len(self.pairs):
+            walls = F.strip_springs(
+                strands,
+                bodies.spheres[:settings.n_scalp],
+                self._strip_springs,
+                self._spring_constants,
+                forces,
+            )
+            c['kernel_calls'] += 1
+        segments = self.solver.step(self, h, head)
+        c['kernel_calls'] += 1
+        return checks, contacts, walls, segments
 
     # ----------------------------------------------------------------- outputs
     def strand_positions(self):

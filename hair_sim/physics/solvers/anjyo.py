@@ -23,8 +23,11 @@ from math import acos, atan2, cos, pi, sin, sqrt
 from numba import njit
 import numpy as np
 
-from hair_sim.physics.forces import (explicit_stability_problem, GUARD_MOVES, guard_segment,
-                                     MAX_RATE, MIN_SIN_THETA, RECHARTS, rotate, TURN_CLAMPS)
+from hair_sim.physics.compiled_call import CompiledCall
+from hair_sim.physics.forces import (explicit_stability_problem, external_forces, GUARD_MOVES,
+                                     guard_segment, MAX_RATE, MIN_SIN_THETA,
+                                     reaction_constraint_forces, RECHARTS, root_kinematics,
+                                     rotate, strand_sphere_masks, strip_springs, TURN_CLAMPS)
 from hair_sim.vecmath import perpendicular_unit
 
 POLE_COS = cos(pi / 4.0)     # re-chart when |cos(theta)| exceeds this (45 deg from a pole)
@@ -290,6 +293,56 @@ def integrate_strands(state,
 
 
 @njit(cache=True)
+def thesis_substep(state,
+                   strands,
+                   forces,
+                   bodies,
+                   head,
+                   attach,
+                   wind,
+                   springs,
+                   settings,
+                   h_prev,
+                   h,
+                   integrator,
+                   damping,
+                   stats):
+    """
+    Take one whole step of the thesis model in one call.
+
+    Roots and spheres placed with the head, the broad phase, velocities, the forces of
+    eqs. 5 and 7-11, the springs of 5.2, and eqs. 1-6 with the guard: the kernels the
+    driver calls one by one for the other model, without the Python between them.
+
+    springs is (StripSprings, SpringConstants). Return (broad-phase checks, contacts,
+    wall springs, segments updated).
+    """
+    root_kinematics(head, attach.root_head, attach.spheres_head, attach.roots,
+                    attach.root_vel, attach.root_acc, bodies)
+    checks = 0
+    if settings.collisions:
+        if settings.broad_phase:
+            checks = strand_sphere_masks(attach.roots, attach.reach, bodies.spheres,
+                                         bodies.masks)
+        else:                              # every sphere tested against every strand
+            bodies.masks[:] = (np.int64(1) << np.int64(bodies.spheres.shape[0])) - 1
+    finite_difference_velocities(strands.pos, strands.pos_prev, h_prev, strands.vel)
+    external_forces(strands, attach.root_acc, settings.gravity, wind, settings.wind_on,
+                    settings.t, settings.drag_factor, settings.air_damping, True, forces)
+    contacts = 0
+    if settings.collisions:
+        contacts = reaction_constraint_forces(strands, bodies, settings.collision_stiffness,
+                                              settings.collision_damping, forces)
+    walls = 0
+    if settings.inter_strip and springs[0].pairs.shape[0] > 0:
+        walls = strip_springs(strands, bodies.spheres[:settings.n_scalp], springs[0],
+                              springs[1], forces)
+    segments = integrate_strands(state, strands, forces, head.R, attach.roots, bodies,
+                                 settings.collisions, damping, h, integrator, stats)
+    return checks, contacts, walls, segments
+
+
+@njit(cache=True)
 def finite_difference_velocities(pos, pos_prev, h_prev, vel):
     """Vertex velocities (pos - pos_prev) / h_prev: what this model knows of its speed."""
     inv_h = 1.0 / h_prev
@@ -333,10 +386,12 @@ class AnjyoSolver:
 
     name = 'anjyo'
     root_inertia = True             # segments swing about roots taken as fixed: -m a_root
+    fused = True                    # a whole step is one kernel call (thesis_substep)
     uses_contacts = False        # the contact record (implicit contacts) is not read
 
     def __init__(self, sim):
         n_s, n_seg = sim.length.shape
+        self._substep_call = CompiledCall(thesis_substep)
         self.theta = np.zeros((n_s, n_seg))
         self.phi = np.zeros((n_s, n_seg))
         self.theta_prev = np.zeros((n_s, n_seg))
@@ -385,6 +440,27 @@ class AnjyoSolver:
     def velocities(self, sim, h_prev):
         """Fill sim.vel from the last step's displacement."""
         finite_difference_velocities(sim.pos, sim.pos_prev, h_prev, sim.vel)
+
+    def substep(self, sim, h, head, bodies, settings):
+        """Take a whole step (forces and eqs. 1-6) in one kernel call; see thesis_substep."""
+        p = sim.params
+        return self._substep_call(
+            sim.layout_version,
+            self.state(),
+            sim.strands,
+            sim.forces,
+            bodies,
+            head,
+            sim.attachment,
+            sim.wind.field,
+            (sim._strip_springs, sim._spring_constants),
+            settings,
+            sim.last_dt,
+            h,
+            EXPLICIT if p.integrator == 'explicit' else IMPLICIT,
+            p.damping,
+            sim.stats,
+        )
 
     def substeps_for(self, h):
         """Return 1: the model takes every step whole (MAX_TURN clamps a step's turn)."""

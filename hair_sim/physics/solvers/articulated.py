@@ -660,6 +660,7 @@ class ArticulatedSolver:
     name = 'articulated'
     root_inertia = False            # the base motion comes out of the dynamics
     uses_contacts = True         # contacts are folded into the articulated inertia
+    fused = False                # the shared kernels one by one, then the chain
 
     def __init__(self, sim):
         n_s, n_seg = sim.length.shape
