@@ -135,3 +135,31 @@ def test_guarded_rest_shape_keeps_lengths_and_leaves_the_sphere(n):
     assert np.allclose(np.linalg.norm(np.diff(shaped[0], axis=0), axis=1), lengths, atol=1e-12)
     assert np.linalg.norm(shaped[0, 1:], axis=1).min() >= radius
     assert np.array_equal(shaped[0, 0], rest[0, 0])                  # the root stays
+
+
+@pytest.mark.parametrize('integrator', ['implicit', 'explicit'])
+def test_one_call_step_equals_the_kernels_one_by_one(integrator):
+    """
+    Check that the one-call step (through CompiledCall) equals the kernels one by one.
+
+    Bit for bit. The run changes parameters (an int damping, then a float one), the wind and the style's
+    layout on the way, so the compiled entry point is re-typed whenever a type may change.
+    """
+    from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, paths
+    from hair_sim.bench.scenarios import drive, violent
+    style = load_hairstyle(paths.shipped_style('thesis_long'))
+    sims = [HairSimulator(style, integrator=integrator, damping=8) for _ in range(2)]
+    sims[1].solver.fused = False                     # the reference: one kernel at a time
+    t = 0.0
+    for stage in range(3):
+        for sim in sims:
+            if stage == 1:
+                sim.set_wind([2.0, 1.0, 0.0], turbulence=0.3, seed=4)
+                sim.set_params(damping=9.5)
+            if stage == 2:
+                sim.set_style(style.with_strip_count(60))
+            drive(sim, violent, t, 0.4, DEFAULT_DT)
+        t += 0.4
+        np.testing.assert_array_equal(sims[0].pos, sims[1].pos)
+        assert sims[0].counters['contacts'] == sims[1].counters['contacts'] > 0
+        assert sims[0].counters['kernel_calls'] < sims[1].counters['kernel_calls']
