@@ -67,6 +67,8 @@ def main(argv=None):
             except (KeyboardInterrupt, ExternalShutdownException):
                 raise
             except Exception as exc:                  # noqa: B902 - count it, go on
+                if not rclpy.ok():                    # SIGTERM shut the context: a stop
+                    break
                 node._internal_error('executor', exc)
             if not printed and node.meshcat_url:
                 print('URL %s' % node.meshcat_url, flush=True)
