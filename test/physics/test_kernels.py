@@ -142,8 +142,9 @@ def test_one_call_step_equals_the_kernels_one_by_one(integrator):
     """
     Check that the one-call step (through CompiledCall) equals the kernels one by one.
 
-    Bit for bit. The run changes parameters (an int damping, then a float one), the wind and the style's
-    layout on the way, so the compiled entry point is re-typed whenever a type may change.
+    Bit for bit. The run changes parameters (an int damping, then a float one), the wind
+    and the style's layout on the way, so the compiled entry point is re-typed whenever a
+    type may change.
     """
     from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, paths
     from hair_sim.bench.scenarios import drive, violent
