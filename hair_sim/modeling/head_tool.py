@@ -25,6 +25,7 @@ def fit_command(args):
     """Fit spheres to args.mesh; write the head file and its display mesh."""
     import numpy as np
     from hair_sim.modeling import head_fit
+    from hair_sim.modeling import glb as glb_limits
     from hair_sim.modeling.glb import write_glb
     from hair_sim.modeling.head import load_head
     from hair_sim.modeling.yamlio import write_yaml_atomic
@@ -39,13 +40,27 @@ def fit_command(args):
     t0 = time.perf_counter()
     vertices, triangles = head_fit.load_mesh(args.mesh, args.axes, args.scale)
     spheres, samples, above, top = head_fit.fit_spheres(vertices, triangles, args.spheres)
-    head = head_fit.head_from_spheres(spheres, top, name, os.path.basename(glb))
+    # the viewers read the display mesh with the package's small GLB reader: one it would
+    # refuse is not written (the head is then drawn as its spheres) and the report says so
+    size = 12 * len(vertices) + 12 * len(triangles) + 1024
+    drawable = len(vertices) <= glb_limits.MAX_VERTICES and size <= glb_limits.MAX_BYTES
+    head = head_fit.head_from_spheres(spheres, top, name,
+                                      os.path.basename(glb) if drawable else '')
     report = head_fit.fit_report(spheres, samples, above, time.perf_counter() - t0)
-    write_glb(glb, vertices.astype(np.float32), triangles.astype(np.uint32))
+    if drawable:
+        write_glb(glb, vertices.astype(np.float32), triangles.astype(np.uint32))
+    else:
+        report['display_mesh_skipped'] = (
+            '%d vertices, %d triangles: over what the viewers read (%d vertices, %d MiB); '
+            'decimate the mesh and fit again to draw it' % (
+                len(vertices), len(triangles), glb_limits.MAX_VERTICES,
+                glb_limits.MAX_BYTES >> 20))
     write_yaml_atomic(out, head)
     loaded = load_head(out)          # what the node will read: it must load back
-    report.update({'head': out, 'display_mesh': glb, 'scalp_spheres': len(loaded.scalp),
-                   'body_spheres': len(loaded.body)})
+    if drawable:
+        loaded.display_mesh()        # and its display mesh too
+    report.update({'head': out, 'display_mesh': glb if drawable else None,
+                   'scalp_spheres': len(loaded.scalp), 'body_spheres': len(loaded.body)})
     print(json.dumps(report, indent=1))
     return 0
 

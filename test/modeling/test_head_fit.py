@@ -235,3 +235,18 @@ def test_reroot_refuses_to_overwrite_and_names_the_reason(fitted, capsys):
     assert head_tool(['reroot', path, str(folder / 'avatar.yaml'), '--out', str(out),
                       '--force']) == 0
     assert out.read_bytes() == first            # the same input gives the same file
+
+
+def test_fit_of_a_mesh_too_large_to_draw_keeps_the_spheres(fitted, monkeypatch, capsys):
+    """A display mesh the viewers would refuse is not written; the head file still loads."""
+    from hair_sim.modeling import glb
+    _, _, folder = fitted
+    monkeypatch.setattr(glb, 'MAX_VERTICES', 1000)
+    out = folder / 'huge.yaml'
+    assert head_tool(['fit', str(folder / 'avatar.glb'), '--out', str(out),
+                      '--spheres', '12']) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert 'decimate' in report['display_mesh_skipped'] and report['display_mesh'] is None
+    head = load_head(str(out))
+    assert head.mesh == '' and head.display_mesh() is None and len(head.collision) == 12
+    assert not (folder / 'huge_display.glb').exists()
