@@ -69,6 +69,14 @@ class HairRenderer:
         self._tri_out = tri                               # outward when sigma = -1
         self._tri_flip = tri[:, [0, 2, 1]]
         self._all = np.arange(self.n_strips)
+        # what a mesh of k strips takes apart from its vertices, built once per style: each
+        # strip's triangles (turned to face out) numbered from 0, UVs and offsets of k strips
+        nv, nt = self.lod.verts_per_strip, self.lod.tris_per_strip
+        self._local = np.where((self.sigma > 0)[:, None, None], self._tri_flip[None],
+                               self._tri_out[None]).astype(np.uint32)
+        self._base = (np.arange(self.n_strips) * nv).astype(np.uint32)[:, None, None]
+        self._uvs_all = np.tile(self.lod.uvs, (self.n_strips, 1))
+        self._offsets_all = (np.arange(self.n_strips + 1) * nt).astype(np.uint32)
         self._cache_all = None
         self._grid = np.zeros((self.n_strips, self.lod.columns, self.lod.rows, 3))
         self._out = np.zeros((self.n_strips, self.lod.verts_per_strip, 3))
@@ -154,12 +162,9 @@ class HairRenderer:
         if viewpoint is None and self._cache_all is not None:
             indices, uvs, offsets = self._cache_all
         else:
-            flip = self.sigma[sel] > 0
-            local = np.where(flip[:, None, None], self._tri_flip[None], self._tri_out[None])
-            indices = (local + (np.arange(k) * nv)[:, None, None]).reshape(-1, 3)
-            indices = indices.astype(np.uint32)
-            uvs = np.tile(self.lod.uvs, (k, 1))
-            offsets = (np.arange(k + 1) * nt).astype(np.uint32)
+            indices = (self._local[sel] + self._base[:k]).reshape(-1, 3)
+            uvs = self._uvs_all[:k * nv]
+            offsets = self._offsets_all[:k + 1]
             if viewpoint is None:
                 self._cache_all = (indices, uvs, offsets)
         self.last_f64 = out                 # float64 U-shape vertices of this frame (k, nv, 3)
