@@ -217,21 +217,28 @@ def delete_all_markers(frame_id, sec, nanosec):
     return MarkerArray(markers=[m])
 
 
+def _new_marker(kind, ns, mid, frame_id, sec, nanosec, frame_locked):
+    """Return a visualization_msgs/Marker to ADD, its header and identity filled in."""
+    from visualization_msgs.msg import Marker
+    m = Marker()
+    m.header.stamp.sec, m.header.stamp.nanosec = sec, nanosec
+    m.header.frame_id = frame_id
+    m.ns = ns
+    m.id = mid
+    m.type = kind
+    m.action = Marker.ADD
+    m.pose.orientation.w = 1.0
+    m.frame_locked = frame_locked
+    return m
+
+
 def head_sphere_markers(spheres, frame_id, sec, nanosec, color=HEAD_COLOR):
     """Return a MarkerArray of SPHERE markers, one per collision sphere (no display mesh)."""
     from visualization_msgs.msg import Marker, MarkerArray
     arr = MarkerArray()
     for mid, s in enumerate(spheres):
-        m = Marker()
-        m.header.stamp.sec, m.header.stamp.nanosec = sec, nanosec
-        m.header.frame_id = frame_id
-        m.ns = HEAD_NAMESPACE
-        m.id = mid
-        m.type = Marker.SPHERE
-        m.action = Marker.ADD
-        m.frame_locked = True
+        m = _new_marker(Marker.SPHERE, HEAD_NAMESPACE, mid, frame_id, sec, nanosec, True)
         m.pose.position.x, m.pose.position.y, m.pose.position.z = (float(x) for x in s[:3])
-        m.pose.orientation.w = 1.0
         m.scale.x = m.scale.y = m.scale.z = 2.0 * float(s[3])
         m.color.r, m.color.g, m.color.b, m.color.a = color
         arr.markers.append(m)
@@ -246,15 +253,8 @@ def build_marker_array(geometry, texture_id, texture_png, frame_id, sec, nanosec
 
     arr = MarkerArray()
     for mid, (points, uvs) in enumerate(geometry):
-        m = Marker()
-        m.header.stamp.sec, m.header.stamp.nanosec = sec, nanosec
-        m.header.frame_id = frame_id
-        m.ns = NAMESPACE
-        m.id = mid
-        m.type = Marker.TRIANGLE_LIST
-        m.action = Marker.ADD
-        m.pose.orientation.w = 1.0
-        m.frame_locked = frame_locked
+        m = _new_marker(Marker.TRIANGLE_LIST, NAMESPACE, mid, frame_id, sec, nanosec,
+                        frame_locked)
         m.scale.x = m.scale.y = m.scale.z = 1.0
         m.color.r = m.color.g = m.color.b = m.color.a = 1.0
         m.points = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in points]

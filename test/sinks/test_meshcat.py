@@ -115,25 +115,28 @@ def test_texture_reaches_meshcat_the_right_way_up():
     assert at_roots > at_tips + 50, (at_roots, at_tips)
 
 
+class RecordingClient:
+    """A meshcat client that keeps the commands it is sent (as their lowered dicts)."""
+
+    def __init__(self):
+        self.sent = []
+
+    def send(self, cmd):
+        self.sent.append(cmd.lower())
+
+
 @pytest.mark.parametrize('show_spheres', [False, True, 'missing'])
 def test_head_is_drawn_as_its_mesh_or_its_spheres(show_spheres, tmp_path):
     """The sink draws the head mesh once by default, the collision spheres when asked."""
     from hair_sim import load_head, paths
     from hair_sim.sinks.meshcat_sink import MeshcatSink
 
-    class Client:
-        def __init__(self):
-            self.sent = []
-
-        def send(self, cmd):
-            self.sent.append(cmd.lower())
-
     head = load_head(paths.shipped_head('default_adult'))
     if show_spheres == 'missing':                 # a head file copied without its mesh
         copy = tmp_path / 'head.yaml'
         copy.write_text(open(paths.shipped_head('default_adult')).read())
         head = load_head(str(copy))
-    client = Client()
+    client = RecordingClient()
     MeshcatSink(head, show_spheres=show_spheres is True)._draw_static(client)
     objects = [c for c in client.sent if c['type'] == 'set_object']
     paths_sent = [str(c['path']) for c in objects]
@@ -156,14 +159,7 @@ def test_camera_looks_from_the_named_view(view, axis):
     from hair_sim import load_head, paths
     from hair_sim.sinks.meshcat_sink import MeshcatSink
 
-    class Client:
-        def __init__(self):
-            self.sent = []
-
-        def send(self, cmd):
-            self.sent.append(cmd.lower())
-
-    client = Client()
+    client = RecordingClient()
     MeshcatSink(load_head(paths.shipped_head('default_adult')), view=view)._draw_static(client)
     cam = [c for c in client.sent if c['type'] == 'set_property' and c['property'] == 'position'
            and 'Cameras/default' in str(c['path'])]
