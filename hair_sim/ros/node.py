@@ -143,7 +143,9 @@ class HairSimNode(Node):
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.pub_head = self.create_publisher(MarkerArray, 'head_markers', latched)
-        self._head_key = None
+        self._head_key = None             # what head_markers last carried
+        self._head_source = None          # (head file, mesh name) of self._head_mesh
+        self._head_mesh = None
         self.pub_mesh = self.create_publisher(HairMesh, 'hair_mesh', reliable)
         self.pub_state = self.create_publisher(HairState, 'hair_state', reliable)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
@@ -578,32 +580,48 @@ class HairSimNode(Node):
     def _viewpoint(self):
         return [float(v) for v in self._p('viewpoint')] if self._p('use_viewpoint') else None
 
-    def _publish_head(self, sec, nsec):
-        """Send the head's display mesh (or its spheres) once per head on head_markers."""
+    def _publish_head(self, sec, nsec, in_head):
+        """
+        Send the head's display mesh (or its spheres) on head_markers, as the hair goes.
+
+        In head_frame (markers_in_head_frame): frame-locked, once per head. In world_frame:
+        under the current head pose, again whenever the head has moved (at marker_rate).
+        """
         head = self.scene.style.head
-        key = (head.path, head.mesh, self.head_frame)
+        if self._head_source != (head.path, head.mesh):
+            self._head_source = (head.path, head.mesh)
+            try:
+                self._head_mesh = head.display_mesh()
+            except (OSError, ValueError) as exc:   # GlbError is a ValueError
+                self.counts['head_mesh_unreadable'] += 1
+                self.get_logger().warning('head %s: display mesh %r not drawn (%s); RViz '
+                                          'gets the collision spheres'
+                                          % (head.name, head.mesh, exc))
+                self._head_mesh = None
+        R, p = (np.eye(3), np.zeros(3)) if in_head else self.scene.sim.head_pose
+        frame = self.head_frame if in_head else self._p('world_frame')
+        key = (self._head_source, frame, np.round(R, 9).tobytes(), np.round(p, 9).tobytes())
         if key == self._head_key:
             return
         self._head_key = key
-        try:
-            mesh = head.display_mesh()
-        except (OSError, ValueError) as exc:   # GlbError is a ValueError
-            self.counts['head_mesh_unreadable'] += 1
-            self.get_logger().warning('head %s: display mesh %r not drawn (%s); RViz gets '
-                                      'the collision spheres' % (head.name, head.mesh, exc))
-            mesh = None
-        if mesh is not None:
-            self.pub_head.publish(head_marker_cdr(mesh[0], mesh[1], self.head_frame, sec, nsec))
+        if self._head_mesh is not None:
+            vertices, triangles = self._head_mesh
+            self.pub_head.publish(head_marker_cdr(vertices @ R.T + p, triangles, frame, sec,
+                                                  nsec, frame_locked=in_head))
         else:
-            self.pub_head.publish(head_sphere_markers(head.collision, self.head_frame, sec, nsec))
+            spheres = head.collision.copy()
+            spheres[:, :3] = spheres[:, :3] @ R.T + p
+            self.pub_head.publish(head_sphere_markers(spheres, frame, sec, nsec,
+                                                      frame_locked=in_head))
+        self.counts['head_markers_published'] += 1
 
     def _publish_markers(self, sec, nsec):
         if not self._p('publish_markers'):
             return
-        self._publish_head(sec, nsec)
+        in_head = self._p('markers_in_head_frame')
+        self._publish_head(sec, nsec, in_head)
         scene = self.scene
         mesh = scene.mesh(self._viewpoint())
-        in_head = self._p('markers_in_head_frame')
         frame = self.head_frame if in_head else self._p('world_frame')
         key = (scene.version, mesh.tris_per_strip, mesh.texture_id, frame)
         if self._encoder_key != key:

@@ -125,12 +125,14 @@ def _write_triangle_list(w, ns, mid, points, uvs, color, resource, texture_png, 
     return stamps, start, len(points)
 
 
-def head_marker_cdr(vertices, triangles, frame_id, sec, nanosec, color=HEAD_COLOR):
+def head_marker_cdr(vertices, triangles, frame_id, sec, nanosec, frame_locked=True,
+                    color=HEAD_COLOR):
     """
     Return the serialized MarkerArray of a head's display mesh (skin-coloured markers).
 
-    Points are in the head frame with frame_locked set, so RViz carries the head with the
-    head's TF frame; it is sent once per head (a latched topic), not per frame.
+    The vertices are in frame_id: the head frame (frame_locked, sent once per head) or the
+    world frame under the current head pose (sent again when the head moves), on the same
+    rules as the hair's markers.
     """
     points = np.asarray(vertices, dtype=np.float64)[np.asarray(triangles).reshape(-1)]
     per_marker = MAX_POINTS - MAX_POINTS % 3
@@ -139,7 +141,7 @@ def head_marker_cdr(vertices, triangles, frame_id, sec, nanosec, color=HEAD_COLO
     w.uint32(len(chunks))
     for mid, chunk in enumerate(chunks):
         _write_triangle_list(w, HEAD_NAMESPACE, mid, chunk, np.zeros((0, 2), np.float32),
-                             color, '', b'', frame_id, sec, nanosec, True)
+                             color, '', b'', frame_id, sec, nanosec, frame_locked)
     return w.bytes()
 
 
@@ -232,12 +234,13 @@ def _new_marker(kind, ns, mid, frame_id, sec, nanosec, frame_locked):
     return m
 
 
-def head_sphere_markers(spheres, frame_id, sec, nanosec, color=HEAD_COLOR):
+def head_sphere_markers(spheres, frame_id, sec, nanosec, frame_locked=True, color=HEAD_COLOR):
     """Return a MarkerArray of SPHERE markers, one per collision sphere (no display mesh)."""
     from visualization_msgs.msg import Marker, MarkerArray
     arr = MarkerArray()
     for mid, s in enumerate(spheres):
-        m = _new_marker(Marker.SPHERE, HEAD_NAMESPACE, mid, frame_id, sec, nanosec, True)
+        m = _new_marker(Marker.SPHERE, HEAD_NAMESPACE, mid, frame_id, sec, nanosec,
+                        frame_locked)
         m.pose.position.x, m.pose.position.y, m.pose.position.z = (float(x) for x in s[:3])
         m.scale.x = m.scale.y = m.scale.z = 2.0 * float(s[3])
         m.color.r, m.color.g, m.color.b, m.color.a = color

@@ -70,7 +70,7 @@ def test_markers_and_mesh_are_published_consistently(node_env):
 
 
 def test_head_markers_reach_a_late_subscriber(node_env):
-    """head_markers is latched: a subscriber that joins later gets the head mesh once."""
+    """head_markers is latched and on the hair's frame rules (world, or head frame-locked)."""
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from visualization_msgs.msg import MarkerArray
     _, ex, node, client = node_env
@@ -81,11 +81,20 @@ def test_head_markers_reach_a_late_subscriber(node_env):
     client.create_subscription(MarkerArray, 'head_markers', heads.append, qos)
     assert spin_until(ex, lambda: heads, 10.0)
     spin_until(ex, lambda: False, 1.0)
-    assert len(heads) == 1                       # sent once per head, not per frame
+    assert len(heads) == 1                       # the head did not move: sent once
     v, t = node.scene.style.head.display_mesh()
+    R, p = node.sim.head_pose
     m = heads[0].markers
-    assert sum(len(x.points) for x in m) == 3 * len(t)
+    points = np.array([[q.x, q.y, q.z] for x in m for q in x.points])
+    np.testing.assert_allclose(points, v[t.reshape(-1)] @ R.T + p, atol=1e-9)
+    world = node.get_parameter('world_frame').value
+    assert {x.header.frame_id for x in m} == {world} and not any(x.frame_locked for x in m)
+    # markers in the head frame: the head follows, frame-locked, in head_frame
+    assert node.set_parameters([Parameter('markers_in_head_frame', value=True)])[0].successful
+    assert spin_until(ex, lambda: len(heads) == 2, 10.0)
+    m = heads[-1].markers
     assert {x.header.frame_id for x in m} == {node.head_frame} and all(x.frame_locked for x in m)
+    assert sum(len(x.points) for x in m) == 3 * len(t)
 
 
 def test_parameter_changes_take_effect_or_are_refused(node_env):
