@@ -35,16 +35,17 @@ def nearest_on_spheres(x, y, z, spheres):
     """
     best = 1e30
     bk = 0
+    bd = 0.0
     for k in range(spheres.shape[0]):
         dx, dy, dz = x - spheres[k, 0], y - spheres[k, 1], z - spheres[k, 2]
-        d = sqrt(dx * dx + dy * dy + dz * dz) - spheres[k, 3]
-        if d < best:
-            best = d
+        d = sqrt(dx * dx + dy * dy + dz * dz)
+        if d - spheres[k, 3] < best:
+            best = d - spheres[k, 3]
             bk = k
-    dx, dy, dz = x - spheres[bk, 0], y - spheres[bk, 1], z - spheres[bk, 2]
-    d = max(sqrt(dx * dx + dy * dy + dz * dz), 1e-12)
-    f = spheres[bk, 3] / d
-    return spheres[bk, 0] + f * dx, spheres[bk, 1] + f * dy, spheres[bk, 2] + f * dz
+            bd = d
+    f = spheres[bk, 3] / max(bd, 1e-12)
+    return (spheres[bk, 0] + f * (x - spheres[bk, 0]), spheres[bk, 1] + f * (y - spheres[bk, 1]),
+            spheres[bk, 2] + f * (z - spheres[bk, 2]))
 
 
 @njit(cache=True)

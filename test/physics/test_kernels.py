@@ -34,7 +34,8 @@ def test_recentre_keeps_directions_and_leaves_the_pole(seed):
     rest = np.array(_direction(C, 0.3, 1.0))
     before = [np.array(_direction(C, th, ph)), np.array(_direction(C, thp, php))]
     C2 = C.copy()
-    th2, ph2, thp2, php2, th0, ph0, moved = _recentre(C2, th, ph, thp, php, *rest)
+    th2, ph2, thp2, php2, th0, ph0, moved = _recentre(C2, th, ph, thp, php, math.cos(th),
+                                                      *rest)
     assert moved
     assert np.allclose(C2 @ C2.T, np.eye(3), atol=1e-12)
     assert np.allclose(_direction(C2, th2, ph2), before[0], atol=1e-12)
@@ -164,3 +165,22 @@ def test_one_call_step_equals_the_kernels_one_by_one(integrator):
         np.testing.assert_array_equal(sims[0].pos, sims[1].pos)
         assert sims[0].counters['contacts'] == sims[1].counters['contacts'] > 0
         assert sims[0].counters['kernel_calls'] < sims[1].counters['kernel_calls']
+
+
+@pytest.mark.parametrize('style_name', ['thesis_long', 'side_swept_long'])
+def test_cached_sines_and_cosines_are_those_of_the_angles(style_name):
+    """
+    The step carries sin/cos of theta and phi from step to step (sums of angles, no calls).
+
+    After seconds of violent motion, with re-chartings and guard contacts along the way,
+    they must still be the sines and cosines of the angles the state holds.
+    """
+    from hair_sim import HairSimulator, load_hairstyle, paths
+    from hair_sim.bench.scenarios import drive, violent
+    sim = HairSimulator(load_hairstyle(paths.shipped_style(style_name)).with_strip_count(12))
+    drive(sim, violent, 0.0, 3.0, 1.0 / 240)
+    assert sim.counters['recharts'] > 0 and sim.counters['guard_moves'] > 0
+    sol = sim.solver
+    expected = np.stack([np.sin(sol.theta), np.cos(sol.theta), np.sin(sol.phi),
+                         np.cos(sol.phi)], axis=-1)
+    assert np.abs(sol.trig - expected).max() < 1e-12

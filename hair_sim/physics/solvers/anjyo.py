@@ -12,6 +12,11 @@ step re-centres first, so eqs. 1-6 are always evaluated at least 45 degrees from
 most MAX_TURN before the position guard, which may turn it further; whatever angles
 result, the next step re-centres before using them.
 
+Each segment carries the sines and cosines of its angles from step to step (`trig`,
+advanced by the sums of angles with a series for the step's turn, set afresh after a
+re-chart or a guard contact): the moments of eq. 4 and the new direction need no sin or
+cos call; only the rest direction's angles (acos, atan2) are computed every step.
+
 Each segment swings about its start as if that were fixed (the root's acceleration enters
 as an inertial force), with its own inertia only: cheap, and it holds a style, but it is
 not the mechanics of a chain (see solvers/articulated.py).
@@ -41,8 +46,11 @@ IMPLICIT = 1
 # their period within 1 % up to omega dt ~ 0.35.
 W_NEXT, W_NOW, W_PREV = 0.4, 0.3, 0.3
 
-AnjyoState = namedtuple('AnjyoState', ['theta', 'phi', 'theta_prev', 'phi_prev', 'chart',
-                                       'rest_dir', 'inv_inertia', 'k_hinge'])
+# trig holds (sin theta, cos theta, sin phi, cos phi) of the current angles: a step
+# computes them for its new angles anyway, and the next step's eq. 4 needs exactly these
+AnjyoState = namedtuple('AnjyoState', ['theta', 'phi', 'theta_prev', 'phi_prev', 'trig',
+                                       'chart', 'rest_dir', 'inv_inertia', 'k_hinge'])
+SIN_TH, COS_TH, SIN_PH, COS_PH = 0, 1, 2, 3
 
 
 @njit(cache=True)
@@ -75,10 +83,14 @@ def _angles_cos(C, dx, dy, dz):
 @njit(cache=True)
 def _direction(C, th, ph):
     """Return the unit direction of angles (theta, phi) in chart C."""
-    st = sin(th)
-    ct = cos(th)
-    a = st * cos(ph)
-    b = st * sin(ph)
+    return _direction_of_trig(C, sin(th), cos(th), sin(ph), cos(ph))
+
+
+@njit(cache=True)
+def _direction_of_trig(C, st, ct, sp, cp):
+    """Return the unit direction in chart C whose angles have these sines and cosines."""
+    a = st * cp
+    b = st * sp
     return (a * C[0, 0] + b * C[1, 0] + ct * C[2, 0],
             a * C[0, 1] + b * C[1, 1] + ct * C[2, 1],
             a * C[0, 2] + b * C[1, 2] + ct * C[2, 2])
@@ -105,7 +117,43 @@ def _rechart(C, dx, dy, dz, rx, ry, rz):
 
 
 @njit(cache=True)
-def init_charts(directions, chart, theta, phi):
+def _store_trig(trig, th, ph):
+    """Write (sin theta, cos theta, sin phi, cos phi) of the angles into trig."""
+    trig[SIN_TH] = sin(th)
+    trig[COS_TH] = cos(th)
+    trig[SIN_PH] = sin(ph)
+    trig[COS_PH] = cos(ph)
+
+
+@njit(cache=True)
+def _sin_cos_small(d):
+    """
+    Return (sin d, cos d) for |d| <= MAX_TURN by their Taylor series, to rounding.
+
+    The first omitted terms are d^15 / 15! and d^14 / 14!: below 2e-19 and 5e-18 at 0.35.
+    """
+    d2 = d * d
+    sn = d * (1.0 + d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 * (
+        1.0 / 362880.0 + d2 * (-1.0 / 39916800.0 + d2 / 6227020800.0))))))
+    cs = 1.0 + d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 * (1.0 / 40320.0 + d2 * (
+        -1.0 / 3628800.0 + d2 / 479001600.0)))))
+    return sn, cs
+
+
+@njit(cache=True)
+def _turn_trig(trig, d_th, d_ph):
+    """Advance trig from the angles (theta, phi) to (theta + d_th, phi + d_ph): sums of angles."""
+    sa, ca = _sin_cos_small(d_th)
+    sb, cb = _sin_cos_small(d_ph)
+    st, ct, sp, cp = trig[SIN_TH], trig[COS_TH], trig[SIN_PH], trig[COS_PH]
+    trig[SIN_TH] = st * ca + ct * sa
+    trig[COS_TH] = ct * ca - st * sa
+    trig[SIN_PH] = sp * cb + cp * sb
+    trig[COS_PH] = cp * cb - sp * sb
+
+
+@njit(cache=True)
+def init_charts(directions, chart, theta, phi, trig):
     """Set each segment's chart so its direction sits at theta = pi/2, phi = 0."""
     n_s, n_seg = theta.shape
     for s in range(n_s):
@@ -115,6 +163,7 @@ def init_charts(directions, chart, theta, phi):
             C[2, 0], C[2, 1], C[2, 2] = 0.0, 0.0, 1.0
             _rechart(C, dx, dy, dz, dx, dy, dz)
             theta[s, i], phi[s, i] = _angles(C, dx, dy, dz)
+            _store_trig(trig[s, i], theta[s, i], phi[s, i])
 
 
 @njit(cache=True)
@@ -131,14 +180,15 @@ def rotate_charts(chart, R):
 
 
 @njit(cache=True)
-def _recentre(C, th, ph, thp, php, rx, ry, rz):
+def _recentre(C, th, ph, thp, php, cos_th, rx, ry, rz):
     """
     Re-centre chart C when the segment or its rest direction r nears a pole.
 
-    Returns (theta, phi, previous theta, previous phi, rest theta, rest phi, recharted).
+    cos_th is cos(theta) of the segment (the step carries it). Returns (theta, phi,
+    previous theta, previous phi, rest theta, rest phi, recharted).
     """
     th0, ph0, ct0 = _angles_cos(C, rx, ry, rz)
-    if abs(cos(th)) > POLE_COS or abs(ct0) > POLE_COS:
+    if abs(cos_th) > POLE_COS or abs(ct0) > POLE_COS:
         dx, dy, dz = _direction(C, th, ph)
         qx, qy, qz = _direction(C, thp, php)
         _rechart(C, dx, dy, dz, rx, ry, rz)
@@ -157,8 +207,12 @@ def _moments(C, th, ph, seg_len, fd, fe):
     M_theta = u F_theta, M_phi = v F_phi with u = l/2, v = (l/2) sin(theta) for the
     distributed force; forces at the segment's end act with lever l.
     """
-    st, ct = sin(th), cos(th)
-    sp, cp = sin(ph), cos(ph)
+    return _moments_of_trig(C, sin(th), cos(th), sin(ph), cos(ph), seg_len, fd, fe)
+
+
+@njit(cache=True)
+def _moments_of_trig(C, st, ct, sp, cp, seg_len, fd, fe):
+    """Eq. 4 (see _moments) at the angles whose sines and cosines are given."""
     # unit vectors along increasing theta and phi (fig. 4.3)
     etx = ct * cp * C[0, 0] + ct * sp * C[1, 0] - st * C[2, 0]
     ety = ct * cp * C[0, 1] + ct * sp * C[1, 1] - st * C[2, 1]
@@ -213,7 +267,7 @@ def integrate_strands(state,
     [GUARD_MOVES], [MIN_SIN_THETA] and [TURN_CLAMPS]. Returns the segments updated.
     """
     theta, phi, theta_prev, phi_prev = state.theta, state.phi, state.theta_prev, state.phi_prev
-    chart, rest_dir = state.chart, state.rest_dir
+    chart, rest_dir, trig = state.chart, state.rest_dir, state.trig
     pos, pos_prev, length = strands.pos, strands.pos_prev, strands.length
     f_dist, f_end = forces.f_dist, forces.f_end
     spheres, masks = bodies.spheres, bodies.masks
@@ -234,15 +288,19 @@ def integrate_strands(state,
         for i in range(n_seg):
             C = chart[s, i]
             rx, ry, rz = rotate(R, rest_dir[s, i, 0], rest_dir[s, i, 1], rest_dir[s, i, 2])
+            tr = trig[s, i]
             th, ph, thp, php, th0, ph0, recharted = _recentre(
-                C, theta[s, i], phi[s, i], theta_prev[s, i], phi_prev[s, i], rx, ry, rz)
+                C, theta[s, i], phi[s, i], theta_prev[s, i], phi_prev[s, i], tr[COS_TH],
+                rx, ry, rz)
             if recharted:
                 recharts += 1
-            st = sin(th)
+                _store_trig(tr, th, ph)
+            st = tr[SIN_TH]
             if st < min_sin:
                 min_sin = st
             seg_len = length[s, i]
-            m_th, m_ph = _moments(C, th, ph, seg_len, f_dist[s, i], f_end[s, i])
+            m_th, m_ph = _moments_of_trig(C, st, tr[COS_TH], tr[SIN_PH], tr[COS_PH], seg_len,
+                                          f_dist[s, i], f_end[s, i])
             k = state.k_hinge[s, i]
             ii = state.inv_inertia[s, i]
             x_th = th - th0                 # deviations from the rest angles (eq. 3)
@@ -257,7 +315,8 @@ def integrate_strands(state,
                 clamps += 1
             new_th = th + d_th
             new_ph = ph + d_ph
-            dx, dy, dz = _direction(C, new_th, new_ph)
+            _turn_trig(tr, d_th, d_ph)          # no sin or cos call: |d| <= MAX_TURN
+            dx, dy, dz = _direction_of_trig(C, tr[SIN_TH], tr[COS_TH], tr[SIN_PH], tr[COS_PH])
             ex, ey, ez = px + seg_len * dx, py + seg_len * dy, pz + seg_len * dz
             moved = False
             if mask != 0:
@@ -267,6 +326,7 @@ def integrate_strands(state,
                 # contact: the segment is turned out of the sphere and stopped there
                 inv = 1.0 / seg_len
                 new_th, new_ph = _angles(C, (ex - px) * inv, (ey - py) * inv, (ez - pz) * inv)
+                _store_trig(tr, new_th, new_ph)
                 theta_prev[s, i] = new_th
                 phi_prev[s, i] = new_ph
                 guards += 1
@@ -277,7 +337,7 @@ def integrate_strands(state,
             phi_prev[s, i] += wrapped - new_ph
             theta[s, i] = new_th
             phi[s, i] = wrapped
-            sn = sin(new_th)
+            sn = tr[SIN_TH]
             turn = max(abs(new_th - theta_prev[s, i]), abs(wrapped - phi_prev[s, i]) * sn)
             rate = turn * seg_len / h
             if rate > max_rate:
@@ -396,6 +456,7 @@ class AnjyoSolver:
         self.phi = np.zeros((n_s, n_seg))
         self.theta_prev = np.zeros((n_s, n_seg))
         self.phi_prev = np.zeros((n_s, n_seg))
+        self.trig = np.zeros((n_s, n_seg, 4))
         self.chart = np.zeros((n_s, n_seg, 3, 3))
         self.update_material(sim)
 
@@ -410,12 +471,14 @@ class AnjyoSolver:
     def state(self):
         """Return the kernels' view of the arrays, shared and not copied."""
         return AnjyoState(theta=self.theta, phi=self.phi, theta_prev=self.theta_prev,
-                          phi_prev=self.phi_prev, chart=self.chart, rest_dir=self.rest_dir,
-                          inv_inertia=self.inv_inertia, k_hinge=self.k_hinge)
+                          phi_prev=self.phi_prev, trig=self.trig, chart=self.chart,
+                          rest_dir=self.rest_dir, inv_inertia=self.inv_inertia,
+                          k_hinge=self.k_hinge)
 
     def place(self, sim, world_dir):
         """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""
-        init_charts(np.ascontiguousarray(world_dir), self.chart, self.theta, self.phi)
+        init_charts(np.ascontiguousarray(world_dir), self.chart, self.theta, self.phi,
+                    self.trig)
         self.hold()
 
     def place_at_rest(self, sim):
