@@ -17,6 +17,7 @@ repeat, come out of order, jump in time or teleport; each case is sorted here:
 from collections import deque
 import math
 
+from numba import njit
 import numpy as np
 
 TELEPORT_DISTANCE = 0.25     # m: smaller jumps are jitter, whatever their implied speed
@@ -35,20 +36,65 @@ def quat_to_matrix(q):
         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
+@njit(cache=True)
 def rotation_vector(R):
     """Return the axis-angle vector (rad) of rotation matrix R."""
-    c = np.clip((np.trace(R) - 1.0) * 0.5, -1.0, 1.0)
+    c = min(1.0, max(-1.0, (R[0, 0] + R[1, 1] + R[2, 2] - 1.0) * 0.5))
     angle = math.acos(c)
     v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
     s = math.sin(angle)
     if angle < 1e-9:
         return 0.5 * v
     if s < 1e-6:                                   # near pi: axis from the diagonal
-        axis = np.sqrt(np.maximum((np.diag(R) + 1.0) * 0.5, 0.0))
-        k = int(np.argmax(axis))
-        axis[np.arange(3) != k] *= np.sign(R[k, np.arange(3) != k] + R[np.arange(3) != k, k])
-        return axis / np.linalg.norm(axis) * angle
+        axis = np.empty(3)
+        k = 0
+        for i in range(3):
+            axis[i] = math.sqrt(max((R[i, i] + 1.0) * 0.5, 0.0))
+            if axis[i] > axis[k]:
+                k = i
+        for i in range(3):
+            if i != k and R[k, i] + R[i, k] < 0.0:
+                axis[i] = -axis[i]
+        n = math.sqrt(axis[0] ** 2 + axis[1] ** 2 + axis[2] ** 2)
+        return axis * (angle / n)
     return v * (angle / (2.0 * s))
+
+
+@njit(cache=True)
+def filter_head_motion(p_new, R_new, p_old, R_old, v, w, beta, h, max_acceleration,
+                       max_angular_acceleration):
+    """
+    One step of the head's motion filter: the velocity low-passed, the acceleration clamped.
+
+    From the pose (p_old, R_old) to (p_new, R_new) in h seconds, with the filtered linear
+    and angular velocities v and w so far and the filter weight beta = h / (smoothing + h).
+    Returns (kinematics, moved): kinematics rows are the new v, w, a, alpha; moved says
+    whether the pose changed by more than 1e-9.
+    """
+    dR = np.empty((3, 3))                          # R_new R_old^T
+    for i in range(3):
+        for j in range(3):
+            dR[i, j] = R_new[i, 0] * R_old[j, 0] + R_new[i, 1] * R_old[j, 1] + \
+                R_new[i, 2] * R_old[j, 2]
+    rv = rotation_vector(dR)
+    out = np.empty((4, 3))
+    moved = False
+    for k in range(3):
+        if abs(p_new[k] - p_old[k]) > 1e-9:
+            moved = True
+        for j in range(3):
+            if abs(R_new[k, j] - R_old[k, j]) > 1e-9:
+                moved = True
+        out[0, k] = v[k] + beta * ((p_new[k] - p_old[k]) / h - v[k])
+        out[1, k] = w[k] + beta * (rv[k] / h - w[k])
+        out[2, k] = (out[0, k] - v[k]) / h
+        out[3, k] = (out[1, k] - w[k]) / h
+    for row, limit in ((2, max_acceleration), (3, max_angular_acceleration)):
+        n = math.sqrt(out[row, 0] ** 2 + out[row, 1] ** 2 + out[row, 2] ** 2)
+        if n > limit:
+            for k in range(3):
+                out[row, k] *= limit / n
+    return out, moved
 
 
 def slerp(q0, q1, f):

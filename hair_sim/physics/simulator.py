@@ -16,7 +16,7 @@ import numpy as np
 from hair_sim.modeling.head import MAX_SPHERES
 from hair_sim.modeling.strips import build_strips
 from hair_sim.physics import forces as F
-from hair_sim.physics.motion import HeadMotion, quat_to_matrix, rotation_vector
+from hair_sim.physics.motion import filter_head_motion, HeadMotion, quat_to_matrix
 from hair_sim.physics.params import PhysicsParams
 from hair_sim.physics.solvers.anjyo import AnjyoSolver
 from hair_sim.physics.solvers.articulated import ArticulatedSolver
@@ -391,23 +391,12 @@ class HairSimulator:
             self._alpha[:] = 0.0
             self._wake('teleport')
             return True
-        moved = (np.abs(p_new - self._p).max() > 1e-9 or np.abs(R_new - self._R).max() > 1e-9)
         p = self.params
-        beta = h / (p.motion_smoothing + h)
-        v_raw = (p_new - self._p) / h
-        w_raw = rotation_vector(R_new @ self._R.T) / h
-        v_f = self._v + beta * (v_raw - self._v)
-        w_f = self._w + beta * (w_raw - self._w)
-        a = (v_f - self._v) / h
-        alpha = (w_f - self._w) / h
-        amax = p.max_head_acceleration
-        na = np.linalg.norm(a)
-        if na > amax:
-            a *= amax / na
-        nal = np.linalg.norm(alpha)
-        if nal > amax / ANGULAR_ACCELERATION_LEVER:
-            alpha *= (amax / ANGULAR_ACCELERATION_LEVER) / nal
-        self._v, self._w, self._a, self._alpha = v_f, w_f, a, alpha
+        kin, moved = filter_head_motion(p_new, R_new, self._p, self._R, self._v, self._w,
+                                        h / (p.motion_smoothing + h), h,
+                                        p.max_head_acceleration,
+                                        p.max_head_acceleration / ANGULAR_ACCELERATION_LEVER)
+        self._v, self._w, self._a, self._alpha = kin
         self._R, self._p = R_new, p_new.copy()
         return moved
 

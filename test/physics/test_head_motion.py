@@ -116,3 +116,48 @@ def test_stamps_jumping_back_re_anchor_the_clock(long_style):
     sim.reset(clock=True)
     assert sim.motion.offset is None and sim.stamp_at() is None
     assert sim.set_head_pose(5.0, [0.05, 0, 0], ID) == 'ok'   # any clock is taken again
+
+
+def test_rotation_vector_matches_scipy_including_half_turns():
+    """The filter's axis-angle vector is scipy's, near the identity and near pi too."""
+    import pytest
+    from scipy.spatial.transform import Rotation
+    from hair_sim.physics.motion import rotation_vector
+    rng = np.random.default_rng(3)
+    axes = rng.normal(size=(300, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = np.concatenate([rng.uniform(0.0, math.pi - 1e-3, 200), np.full(50, 1e-10),
+                             math.pi - rng.uniform(0.0, 1e-7, 50)])
+    for axis, angle in zip(axes, angles):
+        r = Rotation.from_rotvec(axis * angle)
+        got = rotation_vector(np.ascontiguousarray(r.as_matrix()))
+        assert np.linalg.norm(got) == pytest.approx(angle, abs=1e-6)
+        if angle > 3.1:                     # at pi the axis' sign is arbitrary
+            assert min(np.linalg.norm(got - axis * angle),
+                       np.linalg.norm(got + axis * angle)) < 1e-6
+        else:
+            assert np.allclose(got, axis * angle, atol=1e-9)
+
+
+def test_head_filter_reaches_a_steady_turn_and_clamps_its_acceleration():
+    """Under a steady turn the filtered w tends to the turn rate; a jump in it is clamped."""
+    from scipy.spatial.transform import Rotation
+    from hair_sim.physics.motion import filter_head_motion
+    h, rate, beta = 1.0 / 240, np.array([0.3, -1.2, 0.5]), 0.2
+    p = np.zeros(3)
+    R = np.eye(3)
+    v, w = np.zeros(3), np.zeros(3)
+    dR = Rotation.from_rotvec(rate * h).as_matrix()
+    for k in range(400):
+        R_new = np.ascontiguousarray(dR @ R)
+        kin, moved = filter_head_motion(p, R_new, p, R, v, w, beta, h, 1e9, 1e9)
+        assert moved
+        # the closed form of the low pass: w_k = rate (1 - (1 - beta)^k)
+        assert np.allclose(kin[1], rate * (1.0 - (1.0 - beta) ** (k + 1)), atol=1e-9)
+        assert np.allclose(kin[3], (kin[1] - w) / h)
+        v, w, R = kin[0], kin[1], R_new
+    kin, moved = filter_head_motion(p + 0.01, R, p, R, v, w, beta, h, 5.0, 7.0)
+    assert abs(np.linalg.norm(kin[2]) - 5.0) < 1e-9             # 2.4 m/s in one step: clamped
+    assert abs(np.linalg.norm(kin[3]) - 7.0) < 1e-9            # the turn stops: clamped
+    kin, moved = filter_head_motion(p, R, p, R, np.zeros(3), np.zeros(3), beta, h, 5.0, 7.0)
+    assert not moved and not kin.any()
