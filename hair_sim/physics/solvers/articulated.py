@@ -45,7 +45,10 @@ angular velocities predicted at mid-step from the last accelerations. Gravity an
 inter-strip springs stay explicit: `stability_problem` says when a setting needs a smaller
 step. Contacts (eqs. 7-10, shared with the thesis model) act as forces whose stiffness and
 damping are also folded into the articulated inertia, as an added mass at the contact
-point; the position guard then turns a rod out of a sphere, positions only. A step that
+point; the position guard then turns a rod out of a sphere, and an inelastic impulse
+through the articulated inertias (twist locked) stops that end's motion into the sphere
+(`_stop_inward_motion`: positions alone, the joint springs the guard bent sped the end
+inwards every step and violent head motion diverged). A step that
 would turn a segment by more than MAX_STEP_ROTATION is split by the simulator, which
 recomputes the forces for every substep.
 
@@ -227,6 +230,98 @@ def _spring_offset(e, e0):
 
 
 @njit(cache=True)
+def _twist_locked(Dinv, j, R, s, L):
+    """
+    Write into L the joint's inverse with its twist locked: the limit of (D + kappa d d^T)^-1.
+
+    Sherman-Morrison as kappa grows: D^-1 - (D^-1 d)(D^-1 d)^T / (d^T D^-1 d), d the rod's
+    axis. A contact impulse must not spin a rod about its own axis (its twist inertia is
+    tiny: measured, unlocked impulses drove twist to hundreds of rad/s).
+    """
+    dx, dy, dz = R[s, j, 0, 2], R[s, j, 1, 2], R[s, j, 2, 2]
+    g0 = Dinv[j, 0, 0] * dx + Dinv[j, 0, 1] * dy + Dinv[j, 0, 2] * dz
+    g1 = Dinv[j, 1, 0] * dx + Dinv[j, 1, 1] * dy + Dinv[j, 1, 2] * dz
+    g2 = Dinv[j, 2, 0] * dx + Dinv[j, 2, 1] * dy + Dinv[j, 2, 2] * dz
+    q = g0 * dx + g1 * dy + g2 * dz
+    for a in range(3):
+        for b in range(3):
+            L[a, b] = Dinv[j, a, b]
+    if q > 0.0:
+        g = (g0, g1, g2)
+        for a in range(3):
+            for b in range(3):
+                L[a, b] -= g[a] * g[b] / q
+
+
+@njit(cache=True)
+def _unit_impulse_response(s, i, nrm, rc, R, length, Dinv, U_A, U_B, u, dw):
+    """
+    Return the chain's response to a unit impulse along nrm at rc (from joint i), segment i.
+
+    Featherstone's test-force propagation through the articulated inertias of this step
+    (the joints' implicit springs and dampers included, the head held): the bias of the
+    impulse, p = -(rc x n, n), goes from joint i to the root, then accelerations come back
+    out from the root to the tip. Writes the angular velocity changes dw (n_seg, 3) and
+    returns the contact point's velocity change along nrm per unit impulse (> 0).
+    """
+    n_seg = dw.shape[0]
+    L = np.empty((3, 3))
+    pa0 = -(rc[1] * nrm[2] - rc[2] * nrm[1])
+    pa1 = -(rc[2] * nrm[0] - rc[0] * nrm[2])
+    pa2 = -(rc[0] * nrm[1] - rc[1] * nrm[0])
+    pl0, pl1, pl2 = -nrm[0], -nrm[1], -nrm[2]
+    for j in range(n_seg):
+        u[j, 0] = u[j, 1] = u[j, 2] = 0.0
+    for j in range(i, -1, -1):
+        u[j, 0], u[j, 1], u[j, 2] = -pa0, -pa1, -pa2
+        if j == 0:
+            break
+        _twist_locked(Dinv, j, R, s, L)
+        y0 = L[0, 0] * u[j, 0] + L[0, 1] * u[j, 1] + L[0, 2] * u[j, 2]
+        y1 = L[1, 0] * u[j, 0] + L[1, 1] * u[j, 1] + L[1, 2] * u[j, 2]
+        y2 = L[2, 0] * u[j, 0] + L[2, 1] * u[j, 1] + L[2, 2] * u[j, 2]
+        # p^a = p^A + U D^-1 u, U = [J; B^T]
+        pa0 += U_A[j, 0, 0] * y0 + U_A[j, 0, 1] * y1 + U_A[j, 0, 2] * y2
+        pa1 += U_A[j, 1, 0] * y0 + U_A[j, 1, 1] * y1 + U_A[j, 1, 2] * y2
+        pa2 += U_A[j, 2, 0] * y0 + U_A[j, 2, 1] * y1 + U_A[j, 2, 2] * y2
+        pl0 += U_B[j, 0, 0] * y0 + U_B[j, 1, 0] * y1 + U_B[j, 2, 0] * y2
+        pl1 += U_B[j, 0, 1] * y0 + U_B[j, 1, 1] * y1 + U_B[j, 2, 1] * y2
+        pl2 += U_B[j, 0, 2] * y0 + U_B[j, 1, 2] * y1 + U_B[j, 2, 2] * y2
+        # to the parent's joint, back along the parent rod a: p_ang += a x p_lin
+        lp = length[s, j - 1]
+        ax, ay, az = lp * R[s, j - 1, 0, 2], lp * R[s, j - 1, 1, 2], lp * R[s, j - 1, 2, 2]
+        pa0 += ay * pl2 - az * pl1
+        pa1 += az * pl0 - ax * pl2
+        pa2 += ax * pl1 - ay * pl0
+    al0 = al1 = al2 = 0.0                  # the head does not respond
+    lx = ly = lz = 0.0
+    for j in range(n_seg):
+        if j > 0:
+            lp = length[s, j - 1]
+            bx, by, bz = lp * R[s, j - 1, 0, 2], lp * R[s, j - 1, 1, 2], lp * R[s, j - 1, 2, 2]
+            lx += al1 * bz - al2 * by
+            ly += al2 * bx - al0 * bz
+            lz += al0 * by - al1 * bx
+        t0 = u[j, 0] - (U_A[j, 0, 0] * al0 + U_A[j, 0, 1] * al1 + U_A[j, 0, 2] * al2
+                        + U_B[j, 0, 0] * lx + U_B[j, 0, 1] * ly + U_B[j, 0, 2] * lz)
+        t1 = u[j, 1] - (U_A[j, 1, 0] * al0 + U_A[j, 1, 1] * al1 + U_A[j, 1, 2] * al2
+                        + U_B[j, 1, 0] * lx + U_B[j, 1, 1] * ly + U_B[j, 1, 2] * lz)
+        t2 = u[j, 2] - (U_A[j, 2, 0] * al0 + U_A[j, 2, 1] * al1 + U_A[j, 2, 2] * al2
+                        + U_B[j, 2, 0] * lx + U_B[j, 2, 1] * ly + U_B[j, 2, 2] * lz)
+        _twist_locked(Dinv, j, R, s, L)
+        al0 += L[0, 0] * t0 + L[0, 1] * t1 + L[0, 2] * t2
+        al1 += L[1, 0] * t0 + L[1, 1] * t1 + L[1, 2] * t2
+        al2 += L[2, 0] * t0 + L[2, 1] * t1 + L[2, 2] * t2
+        dw[j, 0], dw[j, 1], dw[j, 2] = al0, al1, al2
+        if j == i:
+            cx = lx + al1 * rc[2] - al2 * rc[1]
+            cy = ly + al2 * rc[0] - al0 * rc[2]
+            cz = lz + al0 * rc[1] - al1 * rc[0]
+            dvn = cx * nrm[0] + cy * nrm[1] + cz * nrm[2]
+    return dvn
+
+
+@njit(cache=True)
 def step_chains(state,
                 strands,
                 forces,
@@ -243,8 +338,8 @@ def step_chains(state,
 
     Reads the shared per-segment forces (world), the head's motion (base of every chain),
     writes the new orientations, angular velocities, vertices and vertex velocities. The
-    position guard turns a segment out of a sphere (positions only). Returns the segments
-    updated.
+    position guard turns a segment out of a sphere, and a contact impulse stops its end's
+    inward motion through the whole chain. Returns the segments updated.
     """
     R, omega, rest_rel, kj, dj = state.R, state.omega, state.rest_rel, state.k, state.d
     offset = state.offset
@@ -289,6 +384,11 @@ def step_chains(state,
     E = np.zeros((3, 3))
     Rnew = np.zeros((3, 3))
     Q = np.zeros((3, 3))
+    guarded = np.zeros(n_seg, dtype=np.bool_)     # contacts of this step: the guard moved
+    g_nrm = np.zeros((n_seg, 3))                  # ... the end, along g_nrm
+    u_imp = np.zeros((n_seg, 3))
+    dw = np.zeros((n_seg, 3))
+    rc_imp = np.zeros(3)
     max_rate = 0.0
     guards = 0
     Rh = head.R
@@ -518,7 +618,9 @@ def step_chains(state,
         pos[s, 0, 0], pos[s, 0, 1], pos[s, 0, 2] = px, py, pz
         vel[s, 0, 0], vel[s, 0, 1], vel[s, 0, 2] = vx, vy, vz
         mask = masks[s] if collide else np.int64(0)
+        n_guarded = 0
         for i in range(n_seg):
+            guarded[i] = False
             wx = omega[s, i, 0] + h * alpha[i, 0]
             wy = omega[s, i, 1] + h * alpha[i, 1]
             wz = omega[s, i, 2] + h * alpha[i, 2]
@@ -553,10 +655,16 @@ def step_chains(state,
                             for b in range(3):
                                 Rnew[a, b] = Q[a, b]
                         _orthonormalize(Rnew)
-                    # positions only: the rod's angular velocity is left alone. Changing it
-                    # to stop the end's inward motion moves every vertex beyond with it and
-                    # pumped energy into draped strands (hanging scene: tips 19 mm RMS from
-                    # MuJoCo, never still); the contact's implicit damping takes the velocity.
+                    # the velocity is mended after the chain is placed, by an impulse
+                    # through the articulated inertias (_stop_inward_motion); changing this
+                    # rod's angular velocity alone moved every vertex beyond with it and
+                    # pumped energy into draped strands (hanging scene: 19 mm from MuJoCo)
+                    gn = sqrt((gx - ex) ** 2 + (gy - ey) ** 2 + (gz - ez) ** 2)
+                    if gn > 1e-15:
+                        guarded[i] = True
+                        n_guarded += 1
+                        g_nrm[i, 0], g_nrm[i, 1], g_nrm[i, 2] = \
+                            (gx - ex) / gn, (gy - ey) / gn, (gz - ez) / gn
                     ex, ey, ez = gx, gy, gz
                     guards += 1
             for a in range(3):
@@ -580,9 +688,73 @@ def step_chains(state,
             if rate > max_rate:
                 max_rate = rate
             px, py, pz = ex, ey, ez
+        if n_guarded > 0:
+            _stop_inward_motion(s, guarded, g_nrm, R, omega, length, roots, root_vel, head,
+                                (Dinv, U_A, U_B), (u_imp, dw, rc_imp), vel)
     stats[MAX_RATE] = max_rate
     stats[GUARD_MOVES] += guards
     return n_s * n_seg
+
+
+@njit(cache=True)
+def _stop_inward_motion(s, guarded, g_nrm, R, omega, length, roots, root_vel, head,
+                        articulated, scratch, vel):
+    """
+    Apply an inelastic contact impulse at every end the guard moved, through the chain.
+
+    The guard moves positions only; left alone, the end's inward velocity would be kept,
+    and the joint springs the guard bent would speed it up every step (measured: angular
+    velocities grew without bound under violent head motion). Root to tip, each guarded
+    end gets the impulse along the guard's direction that stops its motion into the
+    sphere relative to the head (the head's surface velocity v + w x (x - p)), through the
+    articulated inertias of this step, so every segment of the chain responds as the
+    dynamics say (Featherstone's test-force propagation); then the vertex velocities are
+    placed again.
+    """
+    Dinv, U_A, U_B = articulated
+    u, dw, rc = scratch
+    n_seg = guarded.shape[0]
+    for i in range(n_seg):
+        if not guarded[i]:
+            continue
+        # the end's velocity now, root to the end of segment i
+        vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
+        ex, ey, ez = roots[s, 0], roots[s, 1], roots[s, 2]
+        for j in range(i + 1):
+            seg = length[s, j]
+            bx, by, bz = seg * R[s, j, 0, 2], seg * R[s, j, 1, 2], seg * R[s, j, 2, 2]
+            vx += omega[s, j, 1] * bz - omega[s, j, 2] * by
+            vy += omega[s, j, 2] * bx - omega[s, j, 0] * bz
+            vz += omega[s, j, 0] * by - omega[s, j, 1] * bx
+            ex += bx
+            ey += by
+            ez += bz
+        rx, ry, rz = ex - head.p[0], ey - head.p[1], ez - head.p[2]
+        sx = head.v[0] + head.w[1] * rz - head.w[2] * ry
+        sy = head.v[1] + head.w[2] * rx - head.w[0] * rz
+        sz = head.v[2] + head.w[0] * ry - head.w[1] * rx
+        nrm = g_nrm[i]
+        vn = (vx - sx) * nrm[0] + (vy - sy) * nrm[1] + (vz - sz) * nrm[2]
+        if vn >= 0.0:
+            continue
+        seg = length[s, i]
+        rc[0], rc[1], rc[2] = seg * R[s, i, 0, 2], seg * R[s, i, 1, 2], seg * R[s, i, 2, 2]
+        dvn = _unit_impulse_response(s, i, nrm, rc, R, length, Dinv, U_A, U_B, u, dw)
+        if dvn <= 1e-300:
+            continue
+        lam = -vn / dvn
+        for j in range(n_seg):
+            omega[s, j, 0] += lam * dw[j, 0]
+            omega[s, j, 1] += lam * dw[j, 1]
+            omega[s, j, 2] += lam * dw[j, 2]
+    vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
+    for j in range(n_seg):
+        seg = length[s, j]
+        bx, by, bz = seg * R[s, j, 0, 2], seg * R[s, j, 1, 2], seg * R[s, j, 2, 2]
+        vx += omega[s, j, 1] * bz - omega[s, j, 2] * by
+        vy += omega[s, j, 2] * bx - omega[s, j, 0] * bz
+        vz += omega[s, j, 0] * by - omega[s, j, 1] * bx
+        vel[s, j + 1, 0], vel[s, j + 1, 1], vel[s, j + 1, 2] = vx, vy, vz
 
 
 # ------------------------------------------------------------------ set-up (numpy, once)
