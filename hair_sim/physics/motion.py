@@ -61,16 +61,23 @@ def rotation_vector(R):
 
 
 @njit(cache=True)
-def filter_head_motion(p_new, R_new, p_old, R_old, v, w, beta, h, max_acceleration,
-                       max_angular_acceleration):
+def filter_head_motion(new_pose,
+                       last,
+                       beta,
+                       h,
+                       limits):
     """
     One step of the head's motion filter: the velocity low-passed, the acceleration clamped.
 
-    From the pose (p_old, R_old) to (p_new, R_new) in h seconds, with the filtered linear
-    and angular velocities v and w so far and the filter weight beta = h / (smoothing + h).
+    From the pose last = (p_old, R_old, v, w), with the filtered linear and angular
+    velocities v and w so far, to new_pose = (p_new, R_new) in h seconds; the filter weight
+    beta = h / (smoothing + h); limits = (max acceleration, max angular acceleration).
     Returns (kinematics, moved): kinematics rows are the new v, w, a, alpha; moved says
     whether the pose changed by more than 1e-9.
     """
+    p_new, R_new = new_pose
+    p_old, R_old, v, w = last
+    max_acceleration, max_angular_acceleration = limits
     dR = np.empty((3, 3))                          # R_new R_old^T
     for i in range(3):
         for j in range(3):

@@ -392,10 +392,13 @@ class HairSimulator:
             self._wake('teleport')
             return True
         p = self.params
-        kin, moved = filter_head_motion(p_new, R_new, self._p, self._R, self._v, self._w,
-                                        h / (p.motion_smoothing + h), h,
-                                        p.max_head_acceleration,
-                                        p.max_head_acceleration / ANGULAR_ACCELERATION_LEVER)
+        kin, moved = filter_head_motion(
+            (p_new, R_new),
+            (self._p, self._R, self._v, self._w),
+            h / (p.motion_smoothing + h),
+            h,
+            (p.max_head_acceleration, p.max_head_acceleration / ANGULAR_ACCELERATION_LEVER),
+        )
         self._v, self._w, self._a, self._alpha = kin
         self._R, self._p = R_new, p_new.copy()
         return moved

@@ -150,14 +150,15 @@ def test_head_filter_reaches_a_steady_turn_and_clamps_its_acceleration():
     dR = Rotation.from_rotvec(rate * h).as_matrix()
     for k in range(400):
         R_new = np.ascontiguousarray(dR @ R)
-        kin, moved = filter_head_motion(p, R_new, p, R, v, w, beta, h, 1e9, 1e9)
+        kin, moved = filter_head_motion((p, R_new), (p, R, v, w), beta, h, (1e9, 1e9))
         assert moved
         # the closed form of the low pass: w_k = rate (1 - (1 - beta)^k)
         assert np.allclose(kin[1], rate * (1.0 - (1.0 - beta) ** (k + 1)), atol=1e-9)
         assert np.allclose(kin[3], (kin[1] - w) / h)
         v, w, R = kin[0], kin[1], R_new
-    kin, moved = filter_head_motion(p + 0.01, R, p, R, v, w, beta, h, 5.0, 7.0)
+    kin, moved = filter_head_motion((p + 0.01, R), (p, R, v, w), beta, h, (5.0, 7.0))
     assert abs(np.linalg.norm(kin[2]) - 5.0) < 1e-9             # 2.4 m/s in one step: clamped
     assert abs(np.linalg.norm(kin[3]) - 7.0) < 1e-9            # the turn stops: clamped
-    kin, moved = filter_head_motion(p, R, p, R, np.zeros(3), np.zeros(3), beta, h, 5.0, 7.0)
+    kin, moved = filter_head_motion((p, R), (p, R, np.zeros(3), np.zeros(3)), beta, h,
+                                    (5.0, 7.0))
     assert not moved and not kin.any()

@@ -35,7 +35,7 @@ def test_recentre_keeps_directions_and_leaves_the_pole(seed):
     before = [np.array(_direction(C, th, ph)), np.array(_direction(C, thp, php))]
     C2 = C.copy()
     th2, ph2, thp2, php2, th0, ph0, moved = _recentre(C2, th, ph, thp, php, math.cos(th),
-                                                      *rest)
+                                                      tuple(rest))
     assert moved
     assert np.allclose(C2 @ C2.T, np.eye(3), atol=1e-12)
     assert np.allclose(_direction(C2, th2, ph2), before[0], atol=1e-12)

@@ -180,13 +180,14 @@ def rotate_charts(chart, R):
 
 
 @njit(cache=True)
-def _recentre(C, th, ph, thp, php, cos_th, rx, ry, rz):
+def _recentre(C, th, ph, thp, php, cos_th, rest):
     """
     Re-centre chart C when the segment or its rest direction r nears a pole.
 
     cos_th is cos(theta) of the segment (the step carries it). Returns (theta, phi,
-    previous theta, previous phi, rest theta, rest phi, recharted).
+    previous theta, previous phi, rest theta, rest phi, recharted); rest is (x, y, z).
     """
+    rx, ry, rz = rest
     th0, ph0, ct0 = _angles_cos(C, rx, ry, rz)
     if abs(cos_th) > POLE_COS or abs(ct0) > POLE_COS:
         dx, dy, dz = _direction(C, th, ph)
@@ -291,7 +292,7 @@ def integrate_strands(state,
             tr = trig[s, i]
             th, ph, thp, php, th0, ph0, recharted = _recentre(
                 C, theta[s, i], phi[s, i], theta_prev[s, i], phi_prev[s, i], tr[COS_TH],
-                rx, ry, rz)
+                (rx, ry, rz))
             if recharted:
                 recharts += 1
                 _store_trig(tr, th, ph)

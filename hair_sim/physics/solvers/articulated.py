@@ -254,16 +254,26 @@ def _twist_locked(Dinv, j, R, s, L):
 
 
 @njit(cache=True)
-def _unit_impulse_response(s, i, nrm, rc, R, length, Dinv, U_A, U_B, u, dw):
+def _unit_impulse_response(s,
+                           i,
+                           contact,
+                           chain,
+                           articulated,
+                           scratch):
     """
     Return the chain's response to a unit impulse along nrm at rc (from joint i), segment i.
 
     Featherstone's test-force propagation through the articulated inertias of this step
     (the joints' implicit springs and dampers included, the head held): the bias of the
     impulse, p = -(rc x n, n), goes from joint i to the root, then accelerations come back
-    out from the root to the tip. Writes the angular velocity changes dw (n_seg, 3) and
-    returns the contact point's velocity change along nrm per unit impulse (> 0).
+    out from the root to the tip. contact is (nrm, rc), chain (R, length), articulated
+    (Dinv, U_A, U_B) of this step, scratch (u, dw). Writes the angular velocity changes dw
+    (n_seg, 3) and returns the contact point's velocity change along nrm per unit impulse.
     """
+    nrm, rc = contact
+    R, length = chain
+    Dinv, U_A, U_B = articulated
+    u, dw = scratch
     n_seg = dw.shape[0]
     L = np.empty((3, 3))
     pa0 = -(rc[1] * nrm[2] - rc[2] * nrm[1])
@@ -689,16 +699,28 @@ def step_chains(state,
                 max_rate = rate
             px, py, pz = ex, ey, ez
         if n_guarded > 0:
-            _stop_inward_motion(s, guarded, g_nrm, R, omega, length, roots, root_vel, head,
-                                (Dinv, U_A, U_B), (u_imp, dw, rc_imp), vel)
+            _stop_inward_motion(s,
+                                (guarded, g_nrm),
+                                (R, omega, length),
+                                (roots, root_vel),
+                                head,
+                                (Dinv, U_A, U_B),
+                                (u_imp, dw, rc_imp),
+                                vel)
     stats[MAX_RATE] = max_rate
     stats[GUARD_MOVES] += guards
     return n_s * n_seg
 
 
 @njit(cache=True)
-def _stop_inward_motion(s, guarded, g_nrm, R, omega, length, roots, root_vel, head,
-                        articulated, scratch, vel):
+def _stop_inward_motion(s,
+                        contacts,
+                        chain,
+                        base,
+                        head,
+                        articulated,
+                        scratch,
+                        vel):
     """
     Apply an inelastic contact impulse at every end the guard moved, through the chain.
 
@@ -709,9 +731,12 @@ def _stop_inward_motion(s, guarded, g_nrm, R, omega, length, roots, root_vel, he
     sphere relative to the head (the head's surface velocity v + w x (x - p)), through the
     articulated inertias of this step, so every segment of the chain responds as the
     dynamics say (Featherstone's test-force propagation); then the vertex velocities are
-    placed again.
+    placed again. contacts is (guarded, normal) per segment, chain (R, omega, length),
+    base the roots' (positions, velocities), scratch (u, dw, rc).
     """
-    Dinv, U_A, U_B = articulated
+    guarded, g_nrm = contacts
+    R, omega, length = chain
+    roots, root_vel = base
     u, dw, rc = scratch
     n_seg = guarded.shape[0]
     for i in range(n_seg):
@@ -739,7 +764,12 @@ def _stop_inward_motion(s, guarded, g_nrm, R, omega, length, roots, root_vel, he
             continue
         seg = length[s, i]
         rc[0], rc[1], rc[2] = seg * R[s, i, 0, 2], seg * R[s, i, 1, 2], seg * R[s, i, 2, 2]
-        dvn = _unit_impulse_response(s, i, nrm, rc, R, length, Dinv, U_A, U_B, u, dw)
+        dvn = _unit_impulse_response(s,
+                                     i,
+                                     (nrm, rc),
+                                     (R, length),
+                                     articulated,
+                                     (u, dw))
         if dvn <= 1e-300:
             continue
         lam = -vn / dvn
