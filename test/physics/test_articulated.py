@@ -240,13 +240,14 @@ def test_sag_free_offsets_hold_a_horizontal_strand(head, n):
     assert rest[0, -1, 2] - sags.pos[0, -1, 2] > 0.01
 
 
-@pytest.mark.xfail(strict=True, reason='known defect (issue 11 note): with a 0.8 rad offset '
-                   'the step loses 43 % of the swing energy at the default dt and gains 18 % '
-                   'at dt / 8. The torque is the exact gradient of the energy (checked '
-                   'numerically); the implicit increment takes the stiffness as k I, while '
-                   'at a deflection e its tangent has a skew part k [e]x / 2 left explicit')
 def test_preloaded_spring_is_conservative(head):
-    """A swing about a held (preloaded) pose keeps its energy: the offset is not a follower."""
+    """
+    A swing about a held (preloaded) pose keeps its energy: the offset is not a follower.
+
+    With 3-DOF joints this failed (-43 % at the default dt, +18 % at dt / 8): at a
+    deflection e the spring's tangent has a skew part k [e]x / 2 that couples swing into
+    the light, stiff twist; the 2-DOF joints have no twist to couple into.
+    """
     n = 8
     # soft enough that the step resolves every joint (no numerical damping), gravity weak
     # enough that the root's preload is under a radian

@@ -8,10 +8,15 @@ bending spring k = EI / l acts on the *relative* rotation between neighbouring s
 the discrete curvature of the Hencky bar-chain: the torque on the child is -k R e, with
 R_child = R_parent R_rest Exp(e); `root_stiffness_scale` multiplies the first joint's k
 (the follicle). Joints have damping d = damping * m l^2 / 3 on their relative angular
-velocity. Twist: the joints are 3-DOF like MuJoCo's ball joints, and the same spring acts
-on twist; a thin rod's twist inertia is tiny, so twist is stiff and fast, but nothing
-external twists a rod of zero width, and the spring is implicit (below), so it stays at
-rest without costing a smaller step.
+velocity. Twist: the joints are 2-DOF, no spin about a rod relative to its parent
+(`_lock_twist` in the articulated-body pass, the relative spin removed from the angular
+velocities, which moves no vertex). Nothing external twists a rod of zero width, and a
+thin rod's twist inertia is tiny: with 3-DOF joints (a twist spring, as MuJoCo's ball
+joints have), a joint holding a preload deflection e couples swing into twist through its
+spring's tangent (skew part k [e]x / 2), and that light, stiff twist was flung at
+thousands of rad/s: violent head motion diverged on every long style, and a preloaded
+swing lost 43 % of its energy per 5 s. With 2-DOF joints the first runs 3 s without a
+divergence and the second keeps its energy within 1 % (tested).
 
 Dynamics are exact and coupled: every joint carries the inertia and weight of everything
 beyond it. Featherstone's articulated-body algorithm, written for this chain in the world
@@ -230,27 +235,22 @@ def _spring_offset(e, e0):
 
 
 @njit(cache=True)
-def _twist_locked(Dinv, j, R, s, L):
+def _lock_twist(S, dx, dy, dz):
     """
-    Write into L the joint's inverse with its twist locked: the limit of (D + kappa d d^T)^-1.
+    Turn the joint's inverse S = D^-1 into that of a 2-DOF joint, in place: no twist.
 
-    Sherman-Morrison as kappa grows: D^-1 - (D^-1 d)(D^-1 d)^T / (d^T D^-1 d), d the rod's
-    axis. A contact impulse must not spin a rod about its own axis (its twist inertia is
-    tiny: measured, unlocked impulses drove twist to hundreds of rad/s).
+    The limit of (D + kappa d d^T)^-1 as kappa grows (Sherman-Morrison): S - (S d)(S d)^T /
+    (d^T S d), d the rod's axis. The relative acceleration S y is then always across the
+    rod. See the module text for why the joints do not twist.
     """
-    dx, dy, dz = R[s, j, 0, 2], R[s, j, 1, 2], R[s, j, 2, 2]
-    g0 = Dinv[j, 0, 0] * dx + Dinv[j, 0, 1] * dy + Dinv[j, 0, 2] * dz
-    g1 = Dinv[j, 1, 0] * dx + Dinv[j, 1, 1] * dy + Dinv[j, 1, 2] * dz
-    g2 = Dinv[j, 2, 0] * dx + Dinv[j, 2, 1] * dy + Dinv[j, 2, 2] * dz
+    g0 = S[0, 0] * dx + S[0, 1] * dy + S[0, 2] * dz
+    g1 = S[1, 0] * dx + S[1, 1] * dy + S[1, 2] * dz
+    g2 = S[2, 0] * dx + S[2, 1] * dy + S[2, 2] * dz
     q = g0 * dx + g1 * dy + g2 * dz
+    g = (g0, g1, g2)
     for a in range(3):
         for b in range(3):
-            L[a, b] = Dinv[j, a, b]
-    if q > 0.0:
-        g = (g0, g1, g2)
-        for a in range(3):
-            for b in range(3):
-                L[a, b] -= g[a] * g[b] / q
+            S[a, b] -= g[a] * g[b] / q
 
 
 @njit(cache=True)
@@ -275,7 +275,6 @@ def _unit_impulse_response(s,
     Dinv, U_A, U_B = articulated
     u, dw = scratch
     n_seg = dw.shape[0]
-    L = np.empty((3, 3))
     pa0 = -(rc[1] * nrm[2] - rc[2] * nrm[1])
     pa1 = -(rc[2] * nrm[0] - rc[0] * nrm[2])
     pa2 = -(rc[0] * nrm[1] - rc[1] * nrm[0])
@@ -286,10 +285,9 @@ def _unit_impulse_response(s,
         u[j, 0], u[j, 1], u[j, 2] = -pa0, -pa1, -pa2
         if j == 0:
             break
-        _twist_locked(Dinv, j, R, s, L)
-        y0 = L[0, 0] * u[j, 0] + L[0, 1] * u[j, 1] + L[0, 2] * u[j, 2]
-        y1 = L[1, 0] * u[j, 0] + L[1, 1] * u[j, 1] + L[1, 2] * u[j, 2]
-        y2 = L[2, 0] * u[j, 0] + L[2, 1] * u[j, 1] + L[2, 2] * u[j, 2]
+        y0 = Dinv[j, 0, 0] * u[j, 0] + Dinv[j, 0, 1] * u[j, 1] + Dinv[j, 0, 2] * u[j, 2]
+        y1 = Dinv[j, 1, 0] * u[j, 0] + Dinv[j, 1, 1] * u[j, 1] + Dinv[j, 1, 2] * u[j, 2]
+        y2 = Dinv[j, 2, 0] * u[j, 0] + Dinv[j, 2, 1] * u[j, 1] + Dinv[j, 2, 2] * u[j, 2]
         # p^a = p^A + U D^-1 u, U = [J; B^T]
         pa0 += U_A[j, 0, 0] * y0 + U_A[j, 0, 1] * y1 + U_A[j, 0, 2] * y2
         pa1 += U_A[j, 1, 0] * y0 + U_A[j, 1, 1] * y1 + U_A[j, 1, 2] * y2
@@ -318,10 +316,9 @@ def _unit_impulse_response(s,
                         + U_B[j, 1, 0] * lx + U_B[j, 1, 1] * ly + U_B[j, 1, 2] * lz)
         t2 = u[j, 2] - (U_A[j, 2, 0] * al0 + U_A[j, 2, 1] * al1 + U_A[j, 2, 2] * al2
                         + U_B[j, 2, 0] * lx + U_B[j, 2, 1] * ly + U_B[j, 2, 2] * lz)
-        _twist_locked(Dinv, j, R, s, L)
-        al0 += L[0, 0] * t0 + L[0, 1] * t1 + L[0, 2] * t2
-        al1 += L[1, 0] * t0 + L[1, 1] * t1 + L[1, 2] * t2
-        al2 += L[2, 0] * t0 + L[2, 1] * t1 + L[2, 2] * t2
+        al0 += Dinv[j, 0, 0] * t0 + Dinv[j, 0, 1] * t1 + Dinv[j, 0, 2] * t2
+        al1 += Dinv[j, 1, 0] * t0 + Dinv[j, 1, 1] * t1 + Dinv[j, 1, 2] * t2
+        al2 += Dinv[j, 2, 0] * t0 + Dinv[j, 2, 1] * t1 + Dinv[j, 2, 2] * t2
         dw[j, 0], dw[j, 1], dw[j, 2] = al0, al1, al2
         if j == i:
             cx = lx + al1 * rc[2] - al2 * rc[1]
@@ -537,6 +534,7 @@ def step_chains(state,
             D[0, 2] = D[2, 0] = J[0, 2] + ct * dx * dz
             D[1, 2] = D[2, 1] = J[1, 2] + ct * dy * dz
             _inv_sym3(D, S)
+            _lock_twist(S, dx, dy, dz)
             for a in range(3):
                 for b in range(3):
                     Dinv[i, a, b] = S[a, b]
@@ -680,6 +678,16 @@ def step_chains(state,
             for a in range(3):
                 for b in range(3):
                     R[s, i, a, b] = Rnew[a, b]
+            # 2-DOF joints: no spin about the rod relative to its parent (it moves no vertex)
+            if i == 0:
+                tw = (wx - head.w[0]) * Rnew[0, 2] + (wy - head.w[1]) * Rnew[1, 2] + \
+                    (wz - head.w[2]) * Rnew[2, 2]
+            else:
+                tw = (wx - omega[s, i - 1, 0]) * Rnew[0, 2] + \
+                    (wy - omega[s, i - 1, 1]) * Rnew[1, 2] + (wz - omega[s, i - 1, 2]) * Rnew[2, 2]
+            wx -= tw * Rnew[0, 2]
+            wy -= tw * Rnew[1, 2]
+            wz -= tw * Rnew[2, 2]
             omega[s, i, 0], omega[s, i, 1], omega[s, i, 2] = wx, wy, wz
             alpha_prev[s, i, 0], alpha_prev[s, i, 1], alpha_prev[s, i, 2] = \
                 alpha[i, 0], alpha[i, 1], alpha[i, 2]
@@ -780,7 +788,17 @@ def _stop_inward_motion(s,
     vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
     for j in range(n_seg):
         seg = length[s, j]
-        bx, by, bz = seg * R[s, j, 0, 2], seg * R[s, j, 1, 2], seg * R[s, j, 2, 2]
+        dx, dy, dz = R[s, j, 0, 2], R[s, j, 1, 2], R[s, j, 2, 2]
+        if j == 0:
+            tw = (omega[s, j, 0] - head.w[0]) * dx + (omega[s, j, 1] - head.w[1]) * dy + \
+                (omega[s, j, 2] - head.w[2]) * dz
+        else:
+            tw = (omega[s, j, 0] - omega[s, j - 1, 0]) * dx + \
+                (omega[s, j, 1] - omega[s, j - 1, 1]) * dy + (omega[s, j, 2] - omega[s, j - 1, 2]) * dz
+        omega[s, j, 0] -= tw * dx                   # 2-DOF joints (see step_chains)
+        omega[s, j, 1] -= tw * dy
+        omega[s, j, 2] -= tw * dz
+        bx, by, bz = seg * dx, seg * dy, seg * dz
         vx += omega[s, j, 1] * bz - omega[s, j, 2] * by
         vy += omega[s, j, 2] * bx - omega[s, j, 0] * bz
         vz += omega[s, j, 0] * by - omega[s, j, 1] * bx
