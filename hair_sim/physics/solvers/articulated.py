@@ -794,7 +794,8 @@ def _stop_inward_motion(s,
                 (omega[s, j, 2] - head.w[2]) * dz
         else:
             tw = (omega[s, j, 0] - omega[s, j - 1, 0]) * dx + \
-                (omega[s, j, 1] - omega[s, j - 1, 1]) * dy + (omega[s, j, 2] - omega[s, j - 1, 2]) * dz
+                (omega[s, j, 1] - omega[s, j - 1, 1]) * dy + \
+                (omega[s, j, 2] - omega[s, j - 1, 2]) * dz
         omega[s, j, 0] -= tw * dx                   # 2-DOF joints (see step_chains)
         omega[s, j, 1] -= tw * dy
         omega[s, j, 2] -= tw * dz
