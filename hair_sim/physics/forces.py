@@ -51,7 +51,10 @@ Forces = namedtuple('Forces', ['f_dist', 'f_end', 'contact'])
 CONTACT_K, CONTACT_C, CONTACT_NX, CONTACT_NY, CONTACT_NZ, CONTACT_LEVER = range(6)
 WindField = namedtuple('WindField', ['velocity', 'amplitude', 'mode_dir', 'mode_k', 'mode_w',
                                      'mode_phase'])
-StripSprings = namedtuple('StripSprings', ['pairs', 'rest1', 'wall_sign', 'rest3', 'proj'])
+# wall_rest: per pair, vertex and side, the distance within which a type-2 spring acts
+# at most (inf: the thesis' d2 alone; the articulated model: also at most the modeled one)
+StripSprings = namedtuple('StripSprings', ['pairs', 'rest1', 'wall_sign', 'wall_rest', 'rest3',
+                                           'proj'])
 SpringConstants = namedtuple('SpringConstants', ['neighbor', 'wall', 'wall_distance',
                                                  'scalp'])
 # where the roots and spheres sit on the head, and where they are this step
@@ -397,6 +400,7 @@ def strip_springs(strands,
     """
     pos, length = strands.pos, strands.length
     pairs, rest1, wall_sign = springs.pairs, springs.rest1, springs.wall_sign
+    wall_rest = springs.wall_rest
     rest3, proj = springs.rest3, springs.proj
     k1, k2, d2, k3 = constants.neighbor, constants.wall, constants.wall_distance, constants.scalp
     f_end = forces.f_end
@@ -431,8 +435,9 @@ def strip_springs(strands,
                     taper = min(1.0,
                                 max(0.0, WALL_TAPER_SLOPE * (along + WALL_TAPER_REACH)),
                                 max(0.0, WALL_TAPER_SLOPE * (1.0 + WALL_TAPER_REACH - along)))
-                    if sd < d2 and taper > 0.0:
-                        f = taper * k2 * length[me, j - 1] * (d2 - sd) * wall_sign[q, j, side]
+                    reach = min(d2, wall_rest[q, j, side])
+                    if sd < reach and taper > 0.0:
+                        f = taper * k2 * length[me, j - 1] * (reach - sd) * wall_sign[q, j, side]
                         f_end[me, j - 1, 0] += f * nx
                         f_end[me, j - 1, 1] += f * ny
                         f_end[me, j - 1, 2] += f * nz

@@ -147,11 +147,13 @@ class HairSimulator:
             if len(self.pairs) else np.zeros((0, n_seg + 1))
         scalp_head = np.ascontiguousarray(self.head.scalp)
         self.wall_sign = np.ones((len(self.pairs), n_seg + 1, 2))
+        self.wall_rest = np.full((len(self.pairs), n_seg + 1, 2), np.inf)
         for q, (a, b) in enumerate(self.pairs):
             for j in range(1, n_seg + 1):
                 for side, (me, other) in enumerate(((a, b), (b, a))):
                     sd = F.wall_signed_distance(rest, scalp_head, me, other, j)[0]
                     self.wall_sign[q, j, side] = 1.0 if sd >= 0 else -1.0
+                    self.wall_rest[q, j, side] = abs(sd)
         self.rest3 = self._scalp_rest_lengths(self.params.scalp_spring_reach)
         self.pos = np.zeros((n_s, n_seg + 1, 3))
         self.pos_prev = np.zeros_like(self.pos)
@@ -478,8 +480,13 @@ class HairSimulator:
                                                    wall=p.wall_stiffness,
                                                    wall_distance=p.wall_distance,
                                                    scalp=p.scalp_stiffness)
+        # the chain holds its modeled shape (sag-free): a wall spring there would push it
+        # off (measured: thesis_short drifted 29 mm in 8 s); the thesis model keeps d2
+        wall_rest = self.wall_rest if self.solver.holds_modeled_walls else \
+            np.full_like(self.wall_rest, np.inf)
         self._strip_springs = F.StripSprings(pairs=self.pairs, rest1=self.rest1,
-                                             wall_sign=self.wall_sign, rest3=self.rest3,
+                                             wall_sign=self.wall_sign, wall_rest=wall_rest,
+                                             rest3=self.rest3,
                                              proj=self._proj)
         self._constants_of = p
         self._springs_rest3 = self.rest3
@@ -554,7 +561,7 @@ class HairSimulator:
             attach.root_acc,
             settings.gravity,
             self.wind.field,
-            settings.wind_on,
+            settings.wind_on or self.solver.still_air_drag,
             settings.t,
             settings.drag_factor,
             settings.air_damping,

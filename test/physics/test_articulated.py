@@ -293,7 +293,8 @@ def test_a_strand_pressed_on_the_head_by_violent_motion_does_not_blow_up():
     A bob_fringe strand under violent head motion stays bounded, with collisions on.
 
     Its guarded ends get an impulse that stops their motion into the head. With positions
-    moved alone, this strand's angular velocities grew to 1e6 rad/s; it diverged at 0.37 s.
+    moved alone (and 3-DOF joints), this strand's angular velocities grew to 1e6 rad/s; it
+    diverged at 0.37 s.
     """
     from hair_sim.bench.scenarios import violent
     base = HairSimulator(load_hairstyle(paths.shipped_style('bob_fringe')), model='articulated')
@@ -305,5 +306,27 @@ def test_a_strand_pressed_on_the_head_by_violent_motion_does_not_blow_up():
         sim.set_head_pose(t, *violent(t))
         sim.step(h)                               # raises SimulationDiverged if it blows up
         fastest = max(fastest, float(np.abs(sim.solver.omega).max()))
-    assert sim.counters['guard_moves'] > 100        # it was pressed on the head throughout
+    assert sim.counters['guard_moves'] > 50         # it was pressed on the head
     assert fastest < 2000.0
+
+
+@pytest.mark.parametrize('style_name', ['thesis_short', 'thesis_long', 'bob_fringe',
+                                        'side_swept_long'])
+def test_shipped_styles_hold_their_modeled_shape(style_name):
+    """
+    Head upright and still, each shipped style settles within 2 mm RMS of its model.
+
+    The sag-free offsets hold it (joints that would need more than MAX_PRELOAD of spring
+    are stiffened), with collisions and the inter-strip springs on; and the rest is
+    stable: it does not drift off over the two seconds.
+    """
+    sim = HairSimulator(load_hairstyle(paths.shipped_style(style_name)), model='articulated')
+    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+    modeled = sim.pos.copy()
+    rms = []
+    for _ in range(2):
+        for _ in range(int(1.0 / DEFAULT_DT)):
+            sim.step(DEFAULT_DT)
+        rms.append(float(np.sqrt(((sim.pos - modeled) ** 2).sum(-1).mean())))
+    assert max(rms) < 2e-3, rms
+    assert rms[1] <= rms[0] + 1e-4                   # not drifting away

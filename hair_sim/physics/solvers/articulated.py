@@ -80,7 +80,13 @@ UNRESOLVED_DAMPING = 0.5     # share of a step's spring increment that damps unr
 # rad a segment may turn in one substep: at 0.1 the tips of 20-segment strands falling
 # over the head whipped up and diverged (hanging scene, 1/60 to 1/240 s)
 MAX_STEP_ROTATION = 0.05
-MAX_SUBSTEPS = 64
+# at most this many substeps per step: at 64, violent head motion at one step per 60 Hz
+# frame (tips near 300 rad/s) ran out of substeps and bob_fringe diverged twice in 3 s
+MAX_SUBSTEPS = 256
+# rad of spring deflection a joint may need to hold its style (sag-free offsets); beyond it
+# the joint is stiffened: measured, offsets past ~1 rad (up to 7.9 on the long styles,
+# past pi the log coordinates wrap) made the hair boil under calm head motion
+MAX_PRELOAD = 1.0
 
 ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', 'd',
                                        'inertia_axial',
@@ -880,6 +886,10 @@ class ArticulatedSolver:
 
     name = 'articulated'
     root_inertia = False            # the base motion comes out of the dynamics
+    # drag on the velocity relative to the air, still air too: without it the light tips
+    # of a chain whipped at 300-400 rad/s under violent head motion and the step diverged
+    still_air_drag = True
+    holds_modeled_walls = True      # type-2 springs act only nearer than the modeled pose
     uses_contacts = True         # contacts are folded into the articulated inertia
     fused = False                # the shared kernels one by one, then the chain
 
@@ -907,8 +917,17 @@ class ArticulatedSolver:
         if p.gravity_compensation:
             offset = sag_free_offsets(self.modeled, sim.length, sim.mass, self.k,
                                       [0.0, 0.0, -p.gravity])
+            offset[..., 2] = 0.0        # a 2-DOF joint's constraint holds the twist torque
+            # a joint whose spring would need more than MAX_PRELOAD of deflection to hold
+            # the style is stiffened until MAX_PRELOAD holds it (e0 = R^T tau / k)
+            size = np.linalg.norm(offset, axis=-1)
+            factor = np.maximum(size / MAX_PRELOAD, 1.0)
+            self.k = np.ascontiguousarray(self.k * factor)
+            offset /= factor[..., None]
+            self.stiffened = float((factor > 1.0).mean())
         else:
             offset = np.zeros(self.modeled.shape[:2] + (3,))
+            self.stiffened = 0.0
         self.offset = np.ascontiguousarray(offset)
 
     def state(self):
