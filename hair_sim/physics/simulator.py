@@ -25,6 +25,7 @@ from hair_sim.physics.wind import Wind
 DEFAULT_DT = 1.0 / 240.0       # s: 4 steps per 60 Hz frame (pendulum period within 1 %)
 SUBSTEPS_PER_60HZ_FRAME = int(round(1.0 / (60.0 * DEFAULT_DT)))
 MAX_DT = 0.1
+RETRY_SUBSTEP_FACTOR = 4       # a step that came out non-finite is taken again this much finer
 STABILITY_MARGIN = 0.9         # explicit terms need omega * dt < 2 * margin
 SOLVERS = {'anjyo': AnjyoSolver, 'articulated': ArticulatedSolver}
 # The head counts as still (sleep may begin) below these
@@ -77,12 +78,13 @@ class HairSimulator:
                          'kernel_calls': 0, 'broad_phase_checks': 0, 'contacts': 0,
                          'diverged': 0,
                          'wall_springs': 0, 'recharts': 0, 'guard_moves': 0, 'wakes': 0,
-                         'turn_clamps': 0, 'substeps': 0}
+                         'turn_clamps': 0, 'substeps': 0, 'retried_steps': 0}
         self.last_step_time = 0.0
         self.stability_dt = DEFAULT_DT      # the step set_params checks stability at
         self.state_version = 0              # bumped whenever positions may have changed
         self.layout_version = 0             # bumped whenever a kernel argument's type may change
         self.broad_phase = True             # skip spheres a strand cannot reach
+        self._last_substeps = 1             # how many substeps the last step took
         self._R = np.eye(3)
         self._p = np.zeros(3)
 
@@ -428,12 +430,14 @@ class HairSimulator:
             self.time = t
             self.last_step_time = _time.perf_counter() - t0
             return False
-        try:
-            self._simulate(t, h)
-            # vertices are placed root to tip, so a NaN anywhere reaches the tips
-            finite = math.isfinite(self.pos[:, -1].sum())   # NaN and inf survive a sum
-        except (ZeroDivisionError, FloatingPointError, OverflowError):
-            finite = False
+        saved = self._saved() if self.solver.retries_diverged_steps else None
+        finite = self._simulated(t, h)
+        if not finite and saved is not None:
+            # a contact or a whip the substep count did not foresee: take the step again
+            # from the saved state with RETRY_SUBSTEP_FACTOR times the substeps
+            self._restore(saved)
+            self.counters['retried_steps'] += 1
+            finite = self._simulated(t, h, RETRY_SUBSTEP_FACTOR * self._last_substeps)
         if not finite:
             self.counters['diverged'] += 1
             self.reset()
@@ -459,17 +463,40 @@ class HairSimulator:
         self.last_step_time = _time.perf_counter() - t0
         return True
 
-    def _simulate(self, t, h):
+    def _simulate(self, t, h, substeps=1):
         """
         One awake step: the shared forces (eqs. 5, 7-11), then the strand model.
 
         A model may ask for the step to be split (the articulated chain does when a segment
-        would turn too far in one step); every substep recomputes the forces.
+        would turn too far in one step), into at least `substeps`; every substep recomputes
+        the forces. Returns the number of substeps taken.
         """
-        n = self.solver.substeps_for(h)
+        n = max(self.solver.substeps_for(h), substeps)
         for k in range(n):
             self._substep(t - h + (k + 1) * h / n, h / n)
         self.counters['substeps'] += n
+        self._last_substeps = n
+        return n
+
+    def _simulated(self, t, h, substeps=1):
+        """Run _simulate; return whether the state came out finite."""
+        try:
+            self._simulate(t, h, substeps)
+            # vertices are placed root to tip, so a NaN anywhere reaches the tips
+            return math.isfinite(self.pos[:, -1].sum())     # NaN and inf survive a sum
+        except (ZeroDivisionError, FloatingPointError, OverflowError):
+            return False
+
+    def _saved(self):
+        """Copy what a step changes (strands, model state, stats, last dt)."""
+        return (self.pos.copy(), self.pos_prev.copy(), self.vel.copy(), self.stats.copy(),
+                self.last_dt, self.solver.saved())
+
+    def _restore(self, saved):
+        pos, pos_prev, vel, stats, last_dt, solver_state = saved
+        self.pos[:], self.pos_prev[:], self.vel[:], self.stats[:] = pos, pos_prev, vel, stats
+        self.last_dt = last_dt
+        self.solver.restore(solver_state)
 
     def _cache_constants(self):
         """Build the kernels' constant bundles again (the parameters or rest lengths changed)."""

@@ -330,3 +330,27 @@ def test_shipped_styles_hold_their_modeled_shape(style_name):
         rms.append(float(np.sqrt(((sim.pos - modeled) ** 2).sum(-1).mean())))
     assert max(rms) < 2e-3, rms
     assert rms[1] <= rms[0] + 1e-4                   # not drifting away
+
+
+@pytest.mark.parametrize('style_name', ['bob_fringe', 'thesis_long'])
+def test_violent_motion_at_one_step_per_frame_neither_diverges_nor_enters_the_head(
+        style_name):
+    """
+    The stress bench's violent head motion, 2 s at one step per 60 Hz frame.
+
+    No step may raise SimulationDiverged (a step that blows up is taken again from a
+    saved state with four times the substeps, and counted), and no vertex beyond a root
+    may end a step inside a collision sphere.
+    """
+    from hair_sim.bench.scenarios import violent
+    sim = HairSimulator(load_hairstyle(paths.shipped_style(style_name)), model='articulated')
+    h, t, deepest = 1 / 60, 0.0, np.inf
+    for _ in range(int(2.0 / h)):
+        t += h
+        sim.set_head_pose(t, *violent(t))
+        sim.step(h)
+        spheres = sim.bodies.spheres
+        gap = np.linalg.norm(sim.pos[:, 1:, None, :] - spheres[:, :3], axis=-1) - spheres[:, 3]
+        deepest = min(deepest, float(gap.min()))
+    assert sim.counters['diverged'] == 0
+    assert deepest > -1e-6, deepest

@@ -449,6 +449,7 @@ class AnjyoSolver:
     root_inertia = True             # segments swing about roots taken as fixed: -m a_root
     still_air_drag = False          # the thesis' drag acts with the wind only (eq. 5)
     holds_modeled_walls = False     # type-2 springs act within d2, as in thesis 5.2
+    retries_diverged_steps = False  # MAX_TURN bounds a step's turn; nothing saved per step
     fused = True                    # a whole step is one kernel call (thesis_substep)
     uses_contacts = False        # the contact record (implicit contacts) is not read
 

@@ -890,6 +890,7 @@ class ArticulatedSolver:
     # of a chain whipped at 300-400 rad/s under violent head motion and the step diverged
     still_air_drag = True
     holds_modeled_walls = True      # type-2 springs act only nearer than the modeled pose
+    retries_diverged_steps = True   # a step that blows up is taken again, finer
     uses_contacts = True         # contacts are folded into the articulated inertia
     fused = False                # the shared kernels one by one, then the chain
 
@@ -958,6 +959,14 @@ class ArticulatedSolver:
         """Turn every segment rigidly by dR (a teleport of the head)."""
         self.R[:] = dR @ self.R
         self.hold()
+
+    def saved(self):
+        """Return a copy of the state a step changes (see HairSimulator.step's retry)."""
+        return self.R.copy(), self.omega.copy(), self.alpha.copy()
+
+    def restore(self, saved):
+        """Put back a state from saved(), in place."""
+        self.R[:], self.omega[:], self.alpha[:] = saved
 
     def velocities(self, sim, h_prev):
         """sim.vel is exact already (the last step wrote it)."""
