@@ -4,7 +4,8 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
     hair_sim_bench accuracy [--json] [--quick] [--plots DIR]   work-precision
     hair_sim_bench scale    [--json] [--quick] [--plots DIR]   cost against strips
     hair_sim_bench skip     [--json] [--quick]                 features on and off
-    hair_sim_bench stress   [--json] [--quick] [--plots DIR]   stability under abuse
+    hair_sim_bench stress   [--json] [--quick] [--plots DIR] [--model M]
+                                stability under abuse (M: anjyo, the default, or articulated)
     hair_sim_bench node     [--json] [--quick]                 the node from outside:
                                 rates, latency, CPU, avatars per machine, load gaps
     hair_sim_bench budget   [--json] [--quick]                 per-vertex costs behind
@@ -30,6 +31,8 @@ def main(argv=None):
     parser.add_argument('--json', action='store_true', help='print JSON on stdout')
     parser.add_argument('--quick', action='store_true', help='a short run (under a minute)')
     parser.add_argument('--plots', default='bench_out', help='directory for PNG plots')
+    parser.add_argument('--model', choices=['anjyo', 'articulated'], default='anjyo',
+                        help='the strand model the stress cases run (stress only)')
     args = parser.parse_args(argv)
     os.environ.setdefault('NUMBA_NUM_THREADS', '1')
     if args.command == 'accuracy':
@@ -54,7 +57,7 @@ def main(argv=None):
         emit(skip.run(args.quick), args.json, 'skip')
     else:
         from hair_sim.bench import stress
-        records, smap, failed = stress.run(args.quick, args.plots)
+        records, smap, failed = stress.run(args.quick, args.plots, args.model)
         if args.json:
             print(json.dumps(clean({'cases': records, 'stability_map': smap,
                                     'promised_failures': len(failed)}), indent=1))
@@ -63,7 +66,8 @@ def main(argv=None):
             emit(smap, False, 'stability map')
         if failed:
             print('stress: %d promised case(s) failed: %s' % (len(failed), ', '.join(
-                '%s/%s/dt=1/%d' % (r['case'], r['integrator'], round(1 / r['dt']))
+                '%s/%s/%s/dt=1/%d' % (r['case'], r['model'], r['integrator'],
+                                      round(1 / r['dt']))
                 for r in failed)), file=sys.stderr)
             return 1
     return 0

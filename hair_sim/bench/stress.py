@@ -1,7 +1,8 @@
 """
 hair_sim_bench stress: numerical stability under abuse, and a stability map.
 
-Cases, for both integrators and dt in {1/1000, 1/240, 1/60, 1/30}: head shaking at 10 rad/s
+Cases, for the thesis model's two integrators (or the articulated model with --model
+articulated) and dt in {1/1000, 1/240, 1/60, 1/30}: head shaking at 10 rad/s
 and 3 Hz, nodding with 20 g peaks, a 10 m teleport, 30 m/s wind with full turbulence,
 strands straight up and straight down (the polar poles), stiffness and damping at the ends
 of their ranges, and a long run of random motion. A case is promised to survive when the
@@ -21,6 +22,7 @@ from hair_sim import load_hairstyle, load_head, paths
 from hair_sim.bench.common import progress, save_figure
 from hair_sim.physics.params import INTEGRATORS, RANGES
 from hair_sim.bench.scenarios import quat_from_euler, violent
+from hair_sim.physics import SimulationDiverged
 from hair_sim.physics.simulator import HairSimulator, stability_problem
 
 DTS_FULL = [1 / 1000, 1 / 240, 1 / 60, 1 / 30]
@@ -61,9 +63,11 @@ def _penetration(sim):
     return float(max(0.0, -d.min()))
 
 
-def run_case(name, integrator, dt, quick, style):
-    """Run one case; return its record."""
-    params = {'integrator': integrator}
+def run_case(name, integrator, dt, quick, style, model='anjyo'):
+    """Run one case; return its record (integrator is the thesis model's; see MODELS)."""
+    params = {'model': model}
+    if model == 'anjyo':
+        params['integrator'] = integrator
     motion, duration, wind, poles = violent, 2.0, None, False
     if name == 'shake':
         motion = shake
@@ -102,9 +106,12 @@ def run_case(name, integrator, dt, quick, style):
                                              m(tt)[1])))(motion)
         else:
             sim.set_head_pose(t, *motion(t))
-        sim.step(dt)
-        if not np.all(np.isfinite(sim.pos)):
+        try:
+            sim.step(dt)
+        except SimulationDiverged:
             nan_steps += 1
+        if nan_steps or not np.all(np.isfinite(sim.pos)):
+            nan_steps = max(nan_steps, 1)
             break
         if i % max(1, n // 200) == 0:
             pen = max(pen, _penetration(sim))
@@ -140,7 +147,8 @@ def run_case(name, integrator, dt, quick, style):
     drained = (ke_end <= 1.5 * ke_peak) if undamped else ke_end <= 0.01 * max(ke_peak, 1e-12)
     ok = (finite and drift <= 1e-9 and drained and sim.min_sin_theta >= 0.7
           and (extreme or (pen <= 1e-3 and slept and woke)))
-    return {'case': name, 'integrator': integrator, 'dt': dt, 'promised': promised,
+    return {'case': name, 'model': model, 'integrator': integrator if model == 'anjyo' else '-',
+            'dt': dt, 'promised': promised, 'retried_steps': sim.counters['retried_steps'],
             'nan_steps': nan_steps, 'max_penetration_m': pen, 'max_length_drift': drift,
             'peak_kinetic_energy_j': ke_peak, 'final_kinetic_energy_j': ke_end,
             'turn_clamps': clamps, 'min_sin_theta': sim.min_sin_theta, 'slept': slept,
@@ -182,18 +190,19 @@ def stability_map(quick, style):
     return out
 
 
-def run(quick=False, plot_dir=None):
-    """Run every case; return (records, stability map, promised cases that failed)."""
+def run(quick=False, plot_dir=None, model='anjyo'):
+    """Run every case with `model`; return (records, stability map, promised failures)."""
     style = load_hairstyle(paths.shipped_style('thesis_long'))
     dts = DTS_QUICK if quick else DTS_FULL
     cases = ['shake', 'teleport_10m', 'poles', 'stiffness_max', 'random'] if quick else CASES
     records = []
     for name in progress(cases, 'stress'):
-        for integ in INTEGRATORS:
+        for integ in (INTEGRATORS if model == 'anjyo' else [None]):
             for dt in dts:
-                records.append(run_case(name, integ, dt, quick, style))
-    smap = stability_map(quick, style)
-    if plot_dir:
+                records.append(run_case(name, integ, dt, quick, style, model))
+    # the map is of the thesis model's two integrators (the chain has one, implicit)
+    smap = stability_map(quick, style) if model == 'anjyo' else []
+    if plot_dir and smap:
         plot(smap, plot_dir)
     failed = [r for r in records if r['promised'] and not r['passed']]
     return records, smap, failed
