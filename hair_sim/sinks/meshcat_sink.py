@@ -336,18 +336,29 @@ def find_chromium():
     return None
 
 
-def screenshot(url, path, width=900, height=700, budget_ms=6000, timeout=90):
-    """Render `url` in headless Chromium (software WebGL) and save a PNG at `path`."""
+def screenshot(url, path, width=900, height=700, budget_ms=6000, timeout=90, attempts=2):
+    """
+    Render `url` in headless Chromium (software WebGL) and save a PNG at `path`.
+
+    A Chromium that has not finished in `timeout` s is killed and started again, up to
+    `attempts` times in all (seen once on a loaded 2-core machine: the page of a live
+    stream never let the virtual time budget run out).
+    """
     import tempfile
     chromium = find_chromium()
     if chromium is None:
         raise RuntimeError('no chromium executable (apt-get install chromium)')
-    with tempfile.TemporaryDirectory() as profile:
-        subprocess.run([chromium] + CHROMIUM_FLAGS + [
-            '--user-data-dir=%s' % profile, '--window-size=%d,%d' % (width, height),
-            '--virtual-time-budget=%d' % budget_ms, '--screenshot=%s' % path, url],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=timeout,
-            check=False)
-    if not os.path.isfile(path):
-        raise RuntimeError('chromium wrote no screenshot of %s' % url)
-    return path
+    for _ in range(attempts):
+        with tempfile.TemporaryDirectory() as profile:
+            try:
+                subprocess.run([chromium] + CHROMIUM_FLAGS + [
+                    '--user-data-dir=%s' % profile, '--window-size=%d,%d' % (width, height),
+                    '--virtual-time-budget=%d' % budget_ms, '--screenshot=%s' % path, url],
+                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=timeout,
+                    check=False)
+            except subprocess.TimeoutExpired:
+                continue
+        if os.path.isfile(path):
+            return path
+    raise RuntimeError('chromium wrote no screenshot of %s (%d attempts of %d s)'
+                       % (url, attempts, timeout))
