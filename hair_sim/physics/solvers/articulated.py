@@ -78,7 +78,9 @@ from hair_sim.physics.forces import (CONTACT_C, CONTACT_K, CONTACT_LEVER, CONTAC
 GAMMA = 0.5
 UNRESOLVED_DAMPING = 0.5     # share of a step's spring increment that damps unresolved modes
 # rad a segment may turn in one substep: at 0.1 the tips of 20-segment strands falling
-# over the head whipped up and diverged (hanging scene, 1/60 to 1/240 s)
+# over the head whipped up and diverged (hanging scene, 1/60 to 1/240 s); with 2-DOF
+# joints and retried steps, 0.1 still let bob_fringe diverge under violent motion (3 s:
+# once at 1/60 s, 3 times at 1/240 s) while halving the demo's cost (0.4-0.6 s per s)
 MAX_STEP_ROTATION = 0.05
 # at most this many substeps per step: at 64, violent head motion at one step per 60 Hz
 # frame (tips near 300 rad/s) ran out of substeps and bob_fringe diverged twice in 3 s
