@@ -1,8 +1,10 @@
 """Procedural hair texture with alpha: strand streaks, edges and tip fading out (RGBA PNG)."""
 
+from collections import OrderedDict
 import hashlib
 import io
 import json
+import threading
 
 import numpy as np
 from PIL import Image
@@ -35,11 +37,30 @@ def texture_rgba(material):
     return (out * 255 + 0.5).astype(np.uint8)
 
 
+# Textures made lately, by material: building and encoding one is most of a renderer's
+# set-up (~10 of 15 ms), and a node re-loading styles makes the same ones again
+CACHE_ENTRIES = 8
+CACHE_MAX_PNG_BYTES = 1 << 20
+_cache = OrderedDict()
+_cache_lock = threading.Lock()
+
+
 def texture_png(material):
     """Return (texture_id, PNG bytes) of a material's texture; the id names its content."""
+    key = json.dumps(material, sort_keys=True)
+    with _cache_lock:
+        hit = _cache.get(key)
+        if hit is not None:
+            _cache.move_to_end(key)
+            return hit
     img = texture_rgba(material)
     buf = io.BytesIO()
     Image.fromarray(img, 'RGBA').save(buf, format='PNG', optimize=False)
     data = buf.getvalue()
-    tid = 'hair-' + hashlib.sha1(json.dumps(material, sort_keys=True).encode()).hexdigest()[:12]
-    return tid, data
+    made = 'hair-' + hashlib.sha1(key.encode()).hexdigest()[:12], data
+    if len(data) <= CACHE_MAX_PNG_BYTES:
+        with _cache_lock:
+            _cache[key] = made
+            while len(_cache) > CACHE_ENTRIES:
+                _cache.popitem(last=False)
+    return made
