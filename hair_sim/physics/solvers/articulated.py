@@ -337,6 +337,92 @@ def _unit_impulse_response(s,
 
 
 @njit(cache=True)
+def _stop_inward_motion(s,
+                        contacts,
+                        chain,
+                        base,
+                        head,
+                        articulated,
+                        scratch,
+                        vel):
+    """
+    Apply an inelastic contact impulse at every end the guard moved, through the chain.
+
+    The guard moves positions only; left alone, the end's inward velocity would be kept,
+    and the joint springs the guard bent would speed it up every step (measured: angular
+    velocities grew without bound under violent head motion). Root to tip, each guarded
+    end gets the impulse along the guard's direction that stops its motion into the
+    sphere relative to the head (the head's surface velocity v + w x (x - p)), through the
+    articulated inertias of this step, so every segment of the chain responds as the
+    dynamics say (Featherstone's test-force propagation); then the vertex velocities are
+    placed again. contacts is (guarded, normal) per segment, chain (R, omega, length),
+    base the roots' (positions, velocities), scratch (u, dw, rc).
+    """
+    guarded, g_nrm = contacts
+    R, omega, length = chain
+    roots, root_vel = base
+    u, dw, rc = scratch
+    n_seg = guarded.shape[0]
+    for i in range(n_seg):
+        if not guarded[i]:
+            continue
+        # the end's velocity now, root to the end of segment i
+        vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
+        ex, ey, ez = roots[s, 0], roots[s, 1], roots[s, 2]
+        for j in range(i + 1):
+            seg = length[s, j]
+            bx, by, bz = seg * R[s, j, 0, 2], seg * R[s, j, 1, 2], seg * R[s, j, 2, 2]
+            vx += omega[s, j, 1] * bz - omega[s, j, 2] * by
+            vy += omega[s, j, 2] * bx - omega[s, j, 0] * bz
+            vz += omega[s, j, 0] * by - omega[s, j, 1] * bx
+            ex += bx
+            ey += by
+            ez += bz
+        rx, ry, rz = ex - head.p[0], ey - head.p[1], ez - head.p[2]
+        sx = head.v[0] + head.w[1] * rz - head.w[2] * ry
+        sy = head.v[1] + head.w[2] * rx - head.w[0] * rz
+        sz = head.v[2] + head.w[0] * ry - head.w[1] * rx
+        nrm = g_nrm[i]
+        vn = (vx - sx) * nrm[0] + (vy - sy) * nrm[1] + (vz - sz) * nrm[2]
+        if vn >= 0.0:
+            continue
+        seg = length[s, i]
+        rc[0], rc[1], rc[2] = seg * R[s, i, 0, 2], seg * R[s, i, 1, 2], seg * R[s, i, 2, 2]
+        dvn = _unit_impulse_response(s,
+                                     i,
+                                     (nrm, rc),
+                                     (R, length),
+                                     articulated,
+                                     (u, dw))
+        if dvn <= 1e-300:
+            continue
+        lam = -vn / dvn
+        for j in range(n_seg):
+            omega[s, j, 0] += lam * dw[j, 0]
+            omega[s, j, 1] += lam * dw[j, 1]
+            omega[s, j, 2] += lam * dw[j, 2]
+    vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
+    for j in range(n_seg):
+        seg = length[s, j]
+        dx, dy, dz = R[s, j, 0, 2], R[s, j, 1, 2], R[s, j, 2, 2]
+        if j == 0:
+            tw = (omega[s, j, 0] - head.w[0]) * dx + (omega[s, j, 1] - head.w[1]) * dy + \
+                (omega[s, j, 2] - head.w[2]) * dz
+        else:
+            tw = (omega[s, j, 0] - omega[s, j - 1, 0]) * dx + \
+                (omega[s, j, 1] - omega[s, j - 1, 1]) * dy + \
+                (omega[s, j, 2] - omega[s, j - 1, 2]) * dz
+        omega[s, j, 0] -= tw * dx                   # 2-DOF joints (see step_chains)
+        omega[s, j, 1] -= tw * dy
+        omega[s, j, 2] -= tw * dz
+        bx, by, bz = seg * dx, seg * dy, seg * dz
+        vx += omega[s, j, 1] * bz - omega[s, j, 2] * by
+        vy += omega[s, j, 2] * bx - omega[s, j, 0] * bz
+        vz += omega[s, j, 0] * by - omega[s, j, 1] * bx
+        vel[s, j + 1, 0], vel[s, j + 1, 1], vel[s, j + 1, 2] = vx, vy, vz
+
+
+@njit(cache=True)
 def step_chains(state,
                 strands,
                 forces,
@@ -726,92 +812,6 @@ def step_chains(state,
     stats[MAX_RATE] = max_rate
     stats[GUARD_MOVES] += guards
     return n_s * n_seg
-
-
-@njit(cache=True)
-def _stop_inward_motion(s,
-                        contacts,
-                        chain,
-                        base,
-                        head,
-                        articulated,
-                        scratch,
-                        vel):
-    """
-    Apply an inelastic contact impulse at every end the guard moved, through the chain.
-
-    The guard moves positions only; left alone, the end's inward velocity would be kept,
-    and the joint springs the guard bent would speed it up every step (measured: angular
-    velocities grew without bound under violent head motion). Root to tip, each guarded
-    end gets the impulse along the guard's direction that stops its motion into the
-    sphere relative to the head (the head's surface velocity v + w x (x - p)), through the
-    articulated inertias of this step, so every segment of the chain responds as the
-    dynamics say (Featherstone's test-force propagation); then the vertex velocities are
-    placed again. contacts is (guarded, normal) per segment, chain (R, omega, length),
-    base the roots' (positions, velocities), scratch (u, dw, rc).
-    """
-    guarded, g_nrm = contacts
-    R, omega, length = chain
-    roots, root_vel = base
-    u, dw, rc = scratch
-    n_seg = guarded.shape[0]
-    for i in range(n_seg):
-        if not guarded[i]:
-            continue
-        # the end's velocity now, root to the end of segment i
-        vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
-        ex, ey, ez = roots[s, 0], roots[s, 1], roots[s, 2]
-        for j in range(i + 1):
-            seg = length[s, j]
-            bx, by, bz = seg * R[s, j, 0, 2], seg * R[s, j, 1, 2], seg * R[s, j, 2, 2]
-            vx += omega[s, j, 1] * bz - omega[s, j, 2] * by
-            vy += omega[s, j, 2] * bx - omega[s, j, 0] * bz
-            vz += omega[s, j, 0] * by - omega[s, j, 1] * bx
-            ex += bx
-            ey += by
-            ez += bz
-        rx, ry, rz = ex - head.p[0], ey - head.p[1], ez - head.p[2]
-        sx = head.v[0] + head.w[1] * rz - head.w[2] * ry
-        sy = head.v[1] + head.w[2] * rx - head.w[0] * rz
-        sz = head.v[2] + head.w[0] * ry - head.w[1] * rx
-        nrm = g_nrm[i]
-        vn = (vx - sx) * nrm[0] + (vy - sy) * nrm[1] + (vz - sz) * nrm[2]
-        if vn >= 0.0:
-            continue
-        seg = length[s, i]
-        rc[0], rc[1], rc[2] = seg * R[s, i, 0, 2], seg * R[s, i, 1, 2], seg * R[s, i, 2, 2]
-        dvn = _unit_impulse_response(s,
-                                     i,
-                                     (nrm, rc),
-                                     (R, length),
-                                     articulated,
-                                     (u, dw))
-        if dvn <= 1e-300:
-            continue
-        lam = -vn / dvn
-        for j in range(n_seg):
-            omega[s, j, 0] += lam * dw[j, 0]
-            omega[s, j, 1] += lam * dw[j, 1]
-            omega[s, j, 2] += lam * dw[j, 2]
-    vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
-    for j in range(n_seg):
-        seg = length[s, j]
-        dx, dy, dz = R[s, j, 0, 2], R[s, j, 1, 2], R[s, j, 2, 2]
-        if j == 0:
-            tw = (omega[s, j, 0] - head.w[0]) * dx + (omega[s, j, 1] - head.w[1]) * dy + \
-                (omega[s, j, 2] - head.w[2]) * dz
-        else:
-            tw = (omega[s, j, 0] - omega[s, j - 1, 0]) * dx + \
-                (omega[s, j, 1] - omega[s, j - 1, 1]) * dy + \
-                (omega[s, j, 2] - omega[s, j - 1, 2]) * dz
-        omega[s, j, 0] -= tw * dx                   # 2-DOF joints (see step_chains)
-        omega[s, j, 1] -= tw * dy
-        omega[s, j, 2] -= tw * dz
-        bx, by, bz = seg * dx, seg * dy, seg * dz
-        vx += omega[s, j, 1] * bz - omega[s, j, 2] * by
-        vy += omega[s, j, 2] * bx - omega[s, j, 0] * bz
-        vz += omega[s, j, 0] * by - omega[s, j, 1] * bx
-        vel[s, j + 1, 0], vel[s, j + 1, 1], vel[s, j + 1, 2] = vx, vy, vz
 
 
 # ------------------------------------------------------------------ set-up (numpy, once)
