@@ -58,14 +58,20 @@ def test_meshcat_page_shows_head_and_moving_hair(tmp_path):
     try:
         url = read_url(demo, 90.0)
         time.sleep(3.0)
-        first = screenshot(url, str(tmp_path / 'demo1.png'))
+        # a page caught while the head mesh and texture are still arriving is taken again
+        # (seen once in CI: 933 hair and 1847 skin pixels); at most three times
+        for attempt in range(3):
+            first = screenshot(url, str(tmp_path / ('demo1_%d.png' % attempt)))
+            hair1, skin1 = hair_and_skin_pixels(first)
+            if hair1 > 2000 and skin1 > 5000:
+                break
+            time.sleep(2.0)
         time.sleep(1.5)
         second = screenshot(url, str(tmp_path / 'demo2.png'))
     finally:
         demo.terminate()
         demo.wait(timeout=20)
     hair0, skin0 = hair_and_skin_pixels(empty)
-    hair1, skin1 = hair_and_skin_pixels(first)
     assert hair0 < 50 and skin0 < 50, (hair0, skin0)
     assert hair1 > 2000 and skin1 > 5000, (hair1, skin1)
     a = np.asarray(Image.open(first).convert('RGB')).astype(int)
