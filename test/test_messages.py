@@ -62,9 +62,9 @@ def test_services_have_the_documented_fields():
 
 
 def test_hair_mesh_cross_process_round_trip(ros_context):
-    """A HairMesh of a few thousand vertices published by another process arrives exactly."""
+    """A HairMesh and its topology (3000 vertices) from another process arrive exactly."""
     import rclpy
-    from hair_sim_msgs.msg import HairMesh
+    from hair_sim_msgs.msg import HairMesh, HairMeshTopology
 
     n_vertices, seed = 3000, 17
     proc = subprocess.Popen([sys.executable, os.path.join(HERE, 'helpers', 'mesh_publisher.py'),
@@ -73,19 +73,26 @@ def test_hair_mesh_cross_process_round_trip(ros_context):
     node = rclpy.create_node('hair_mesh_receiver', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
-    received = []
+    received, topologies = [], []
     node.create_subscription(HairMesh, 'hair_mesh_probe', received.append, 10)
+    node.create_subscription(HairMeshTopology, 'hair_mesh_topology_probe', topologies.append,
+                             10)
     try:
-        assert spin_until(executor, lambda: bool(received), 30.0), 'no HairMesh from the publisher'
+        assert spin_until(executor, lambda: bool(received and topologies), 30.0), \
+            'no HairMesh or HairMeshTopology from the publisher'
     finally:
         proc.terminate()
         proc.wait(timeout=10)
         executor.shutdown()
         node.destroy_node()
     vertices, uvs, indices, offsets = probe_mesh(n_vertices, seed)
-    got = received[0]
+    got, top = received[0], topologies[0]
     np.testing.assert_array_equal(np.asarray(got.vertices, dtype=np.float32), vertices)
-    np.testing.assert_array_equal(np.asarray(got.uvs, dtype=np.float32), uvs)
-    np.testing.assert_array_equal(np.asarray(got.indices, dtype=np.uint32), indices)
-    np.testing.assert_array_equal(np.asarray(got.strip_offsets, dtype=np.uint32), offsets)
-    assert got.texture_id == 'probe-%d' % seed and got.header.frame_id == 'head'
+    np.testing.assert_array_equal(np.asarray(got.strip_ids, dtype=np.uint32),
+                                  np.arange(len(offsets) - 1))
+    np.testing.assert_array_equal(np.asarray(top.uvs, dtype=np.float32), uvs)
+    np.testing.assert_array_equal(np.asarray(top.indices, dtype=np.uint32), indices)
+    np.testing.assert_array_equal(np.asarray(top.strip_offsets, dtype=np.uint32), offsets)
+    assert bytes(top.texture_png) == bytes(range(256))
+    assert top.texture_id == 'probe-%d' % seed and got.header.frame_id == 'head'
+    assert got.topology_id == top.topology_id == seed

@@ -51,6 +51,18 @@ def reach_1mm(acc, integ):
     return '1/%d s' % round(1 / max(ok)) if ok else 'none of the tested steps'
 
 
+def targets(r180, r1000):
+    """Return a sentence on the frame-budget goals: 410 fps at 180 strips, 60 at 1000."""
+    out = []
+    for r, goal in ((r180, 410), (r1000, 60)):
+        if r is None:
+            continue
+        out.append('%d strips: %.0f fps against %d, %s' % (
+            r['strips'], r['end_to_end_fps'], goal,
+            'met' if r['end_to_end_fps'] >= goal else 'missed'))
+    return 'Targets: %s.' % '; '.join(out)
+
+
 def head_fit_section(fit):
     """Return the lines of the head-fitting section (hair_sim_head fit's JSON report)."""
     rows = [dict(region=region, **fit[key]) for region, key in (
@@ -142,36 +154,62 @@ def main():
               'solution, and the implicit one stays stable (about 6 mm) at one step per '
               '60 Hz frame.' % (span_cm(chain), reach_1mm(acc, 'explicit'),
                                 reach_1mm(acc, 'implicit')), '']
+    anjyo = [r for r in scale if r.get('model', 'anjyo') == 'anjyo']
+    articulated = [r for r in scale if r.get('model') == 'articulated']
     parts += ['## Scale against the thesis (`hair_sim_bench scale --json`)', '',
-              'Styles are thesis_long refined to n strips; 4 solver steps per 60 Hz frame. '
-              'End to end = 4 physics steps + U-shape mesh + marker bytes (meshcat encodes '
-              'on its own thread).', '',
-              table(scale, [('strips', 'strips'), ('simulated_vertices', 'sim. vertices'),
-                            ('rendered_vertices', 'drawn vertices'),
-                            ('physics_step_ms', 'step ms'), ('frame_ms', 'U-shape ms'),
-                            ('marker_bytes_ms', 'markers ms'),
-                            ('meshcat_encode_ms', 'meshcat ms'),
-                            ('end_to_end_fps', 'fps end to end'),
-                            ('thesis_fps', 'thesis fps (2003)')]),
-              '', '![](doc/bench/scale.png)', '']
-    r180 = next(r for r in scale if r['strips'] == 180)
-    r1000 = next((r for r in scale if r['strips'] == 1000), None)
+              'Styles are thesis_long refined to n strips; 4 solver steps per 60 Hz frame; one '
+              'core. End to end = what the node\'s own thread does for a frame: 4 physics '
+              'steps, the U-shape mesh, the hair_mesh bytes (vertices only), and the marker '
+              'bytes at the shipped `marker_rate` (10 Hz: one frame in six; the last column '
+              'counts them in every frame). meshcat encodes on its own thread.', '']
+    cols = [('strips', 'strips'), ('simulated_vertices', 'sim. vertices'),
+            ('rendered_vertices', 'drawn vertices'), ('physics_step_ms', 'step ms'),
+            ('frame_ms', 'U-shape ms'), ('hair_mesh_ms', 'hair_mesh ms'),
+            ('marker_bytes_ms', 'markers ms'), ('meshcat_encode_ms', 'meshcat ms'),
+            ('end_to_end_fps', 'fps end to end'),
+            ('end_to_end_fps_markers_every_frame', 'fps, markers every frame'),
+            ('thesis_fps', 'thesis fps (2003)')]
+    parts += ['### Thesis model (`anjyo`, the default)', '', table(anjyo, cols), '']
+    if articulated:
+        parts += ['### Articulated model', '', table(articulated, cols), '']
+    parts += ['![](doc/bench/scale.png)', '']
+    r180 = next(r for r in anjyo if r['strips'] == 180)
+    r1000 = next((r for r in anjyo if r['strips'] == 1000), None)
     seg_us = 1e3 * r180['physics_step_ms'] / (0.9 * r180['simulated_vertices'])
+    c180 = next((r for r in articulated if r['strips'] == 180), None)
     parts += ['**Reading.** Cost grows linearly with strips up to 1000; at 2000 the 45 MB '
               'MarkerArray and the meshcat payload no longer scale (memory traffic). At 180 '
-              'strips the frame takes %.2f ms (%.0f fps, %.1fx the thesis\' 41 fps): %.0f %% '
-              'physics (4 x %.2f ms), %.0f %% U-shape, %.0f %% marker bytes. The targets (410 '
-              'fps at 180 strips, 60 fps at 1000) are missed. Where the time goes: a physics '
-              'step costs %.2f us per segment, most of it in the integration kernel (the '
-              'trigonometry of the polar charts, with the rest angles recomputed every step '
-              'as the head turns) and the inter-strip springs, plus ~0.1 ms of Python per '
-              'step; the U-shape costs ~6 us per strip (a tangent point and a bisection per '
-              'edge vertex and row). %s'
+              'strips the thesis model\'s frame takes %.2f ms (%.0f fps, %.1fx the thesis\' '
+              '41 fps): %.0f %% physics (4 x %.2f ms), %.0f %% U-shape, the rest message '
+              'bytes. %s Where '
+              'the time goes: a physics step costs %.2f us per segment (about 60 %% the '
+              'integration kernel: the rest direction\'s angles, the implicit update and the '
+              'position guard against the spheres; the rest the inter-strip springs, the '
+              'wind with its gusts and the contact forces), plus ~0.03 ms of Python; the '
+              'U-shape costs ~5 us per strip (a tangent point and a bisection per edge vertex '
+              'and row). %s%s'
               % (r180['end_to_end_ms'], r180['end_to_end_fps'], r180['end_to_end_fps'] / 41,
                  100 * 4 * r180['physics_step_ms'] / r180['end_to_end_ms'],
                  r180['physics_step_ms'], 100 * r180['frame_ms'] / r180['end_to_end_ms'],
-                 100 * r180['marker_bytes_ms'] / r180['end_to_end_ms'], seg_us,
-                 ('At 1000 strips: %.0f fps.' % r1000['end_to_end_fps']) if r1000 else ''), '']
+                 targets(r180, r1000), seg_us,
+                 ('At 1000 strips: %.0f fps. ' % r1000['end_to_end_fps']) if r1000 else '',
+                 ('The articulated model\'s step costs %.1fx the thesis model\'s at 180 strips '
+                  '(%.0f fps end to end).' % (c180['physics_step_ms'] / r180['physics_step_ms'],
+                                              c180['end_to_end_fps'])) if c180 else ''), '']
+    parts += ['### Message sizes: hair_mesh before and after the topology split', '',
+              'Before, every HairMesh carried the vertices, UVs, triangles, strip offsets '
+              'and ids, and the texture PNG every 30th message. Now `hair_mesh` carries the '
+              'stamp, `topology_id`, the drawn strip ids and the vertices; the rest goes '
+              'once per style on the latched `hair_mesh_topology`.', '',
+              table(anjyo, [('strips', 'strips'), ('rendered_vertices', 'drawn vertices'),
+                            ('hair_mesh_bytes_before_split', 'bytes per frame before'),
+                            ('hair_mesh_bytes', 'bytes per frame now'),
+                            ('hair_mesh_topology_bytes', 'topology bytes (once per style)')]),
+              '', 'A frame\'s message is %.0f %% smaller (measured on `make demo` from another '
+              'process with `python -m hair_sim.bench.probe`: 116 140 bytes per hair_mesh at '
+              '30.0 Hz for thesis_long, where the single message was about 322 000).'
+              % (100 * (1 - r180['hair_mesh_bytes'] / r180['hair_mesh_bytes_before_split'])),
+              '']
     parts += ['## What a scene does not need (`hair_sim_bench skip --json`)', '',
               'work: everything computed; skipped: what the scene does not need left out '
               '(frame = 4 steps and the mesh, except the culling row: the mesh alone).', '',
@@ -182,9 +220,14 @@ def main():
               'inputs and the mesh of the unchanged state is reused. The broad phase and '
               'switching off the inter-strip springs or the wind save what they compute. '
               'Culling from the front skips the hidden strips (about a third of the sample '
-              'style), but proving a strip hidden costs about as much as building its '
-              'U-shape (a few microseconds), so it saves little CPU here; what it saves is '
-              'downstream: triangles sent to meshcat and drawn.', '']
+              'style), but proving a strip hidden costs more than building its U-shape, so '
+              'the culled mesh costs more CPU than the whole one; what it saves is '
+              'downstream: triangles sent to meshcat and drawn. (Tried and measured: '
+              'trigonometry-free shadow tests on the convex region each sphere hides, with '
+              'per-vertex masks of the hiding spheres, brought the test from ~0.15 to '
+              '~0.08 ms on thesis_long but culled 15 strips instead of 17, and the culled '
+              'mesh still cost about as much as the whole one: the wall bottoms and the '
+              'tests are the same kind of work as the U-shape itself.)', '']
     cases = stress['cases']
     parts += ['## Numerical stability under abuse (`hair_sim_bench stress --json`)', '',
               'Promised: the solver\'s own stability check accepts the parameters at that '

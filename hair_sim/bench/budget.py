@@ -33,7 +33,7 @@ def measure(n_strips, model, repeats):
 
     def frame():
         m = renderer.mesh(sim.pos, R, p)
-        hair_mesh_cdr(m, m.vertices, 'world', 0, 0, False)
+        hair_mesh_cdr(m.vertices, m.strip_ids, 1, 'world', 0, 0)
         hair_state_cdr(sim.pos, False, 0.0, 'world', 0, 0)
     frame_ms = median_ms(frame, repeats)
     marker_ms = median_ms(lambda: encoder.encode(mesh, np.eye(3), np.zeros(3), 0, 0), repeats)

@@ -148,7 +148,7 @@ def load_gap(workdir, duration=6.0):
             end = time.monotonic() + 1.0
             while time.monotonic() < end:
                 ex.spin_once(timeout_sec=0.01)
-            t = [m for m, _, _ in probe.arrivals[('/', 'hair_state')] if m >= t0]
+            t = [m for m, *_ in probe.arrivals[('/', 'hair_state')] if m >= t0]
             gaps.append({'style': name, 'strips': strips if name == 'largest' else 46,
                          'success': future.result().success, 'answer_s': answered,
                          'longest_gap_ms': 1e3 * max(b - a for a, b in zip(t, t[1:]))})

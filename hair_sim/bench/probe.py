@@ -51,10 +51,11 @@ class Probe:
         from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
         self.topics = [t for t in HAIR_TOPICS if topics is None or t[0] in topics]
         self.node = node
-        self.arrivals = defaultdict(list)     # (ns, topic) -> [(monotonic, wall, stamp)]
+        self.arrivals = defaultdict(list)     # (ns, topic) -> [(monotonic, wall, stamp, bytes)]
         self.poses = defaultdict(list)        # ns -> [monotonic]
         self.diagnostics = defaultdict(list)  # ns -> [(stamp, {key: value})]
         self.recording = False
+        self.seen = set()                     # (ns, topic) that delivered a message at all
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         for ns in namespaces:
             base = ns.rstrip('/')
@@ -69,9 +70,10 @@ class Probe:
 
     def _recorder(self, ns, topic, offset):
         def record(data):
+            self.seen.add((ns, topic))
             if self.recording:
                 self.arrivals[(ns, topic)].append((time.monotonic(), time.time(),
-                                                   stamp_of(data, offset)))
+                                                   stamp_of(data, offset), len(data)))
         return record
 
     def _pose_recorder(self, ns):
@@ -99,13 +101,16 @@ class Probe:
             rec = {}
             for topic, _, _ in self.topics:
                 a = self.arrivals.get((ns, topic), [])
-                lat = [1e3 * (wall - st) for _, wall, st in a if st]
+                lat = [1e3 * (wall - st) for _, wall, st, _ in a if st]
                 rec[topic] = {
                     'messages': len(a),
                     'rate_hz': (len(a) - 1) / (a[-1][0] - a[0][0]) if len(a) > 2 else 0.0,
                     'latency_ms_p50': float(np.percentile(lat, 50)) if lat else None,
                     'latency_ms_p95': float(np.percentile(lat, 95)) if lat else None,
-                    'latency_ms_max': float(np.max(lat)) if lat else None}
+                    'latency_ms_max': float(np.max(lat)) if lat else None,
+                    'bytes_mean': float(np.mean([n for *_, n in a])) if a else None,
+                    'gap_ms_max': float(1e3 * np.diff([m for m, *_ in a]).max())
+                    if len(a) > 2 else None}
             poses = self.poses.get(ns, [])
             rec['poses_sent_hz'] = (len(poses) - 1) / (poses[-1] - poses[0]) \
                 if len(poses) > 2 else 0.0
@@ -181,9 +186,14 @@ class MeshcatWatcher:
         return (len(f) - 1) / (f[-1] - f[0]) if len(f) > 2 else 0.0
 
 
-def measure(namespaces, duration, warmup=2.0, meshcat_url=None, context=None, topics=None):
+def measure(namespaces, duration, warmup=2.0, meshcat_url=None, context=None, topics=None,
+            connect_timeout=10.0):
     """
-    Subscribe, wait `warmup`, record for `duration` s; return the report dict.
+    Subscribe, wait for a first message, wait `warmup`, record for `duration` s; return the report.
+
+    The first message of every topic (up to connect_timeout s) is waited for before the
+    warm-up: discovery of a new process has taken over two seconds on a loaded machine,
+    and a window that opens before it would measure the discovery, not the node.
 
     topics: the hair topics to subscribe to (default all). A subscriber of the 1 MB
     MarkerArray receives the other topics later while it takes one in (head-of-line in
@@ -197,17 +207,24 @@ def measure(namespaces, duration, warmup=2.0, meshcat_url=None, context=None, to
     ex = SingleThreadedExecutor(context=context)
     ex.add_node(node)
     try:
+        wanted = {(ns, t[0]) for ns in namespaces for t in probe.topics}
+        start = time.monotonic()
+        while not wanted <= probe.seen and time.monotonic() < start + connect_timeout:
+            ex.spin_once(timeout_sec=0.05)
+        connect_s = time.monotonic() - start
         end = time.monotonic() + warmup
         while time.monotonic() < end:
             ex.spin_once(timeout_sec=0.05)
         probe.recording = True
         if watcher is not None:
             watcher.recording = True
+        print('hair_sim.bench.probe: recording', file=sys.stderr, flush=True)
         end = time.monotonic() + duration
         while time.monotonic() < end:
             ex.spin_once(timeout_sec=0.05)
         probe.recording = False
         report = probe.report(namespaces, duration)
+        report['connect_s'] = connect_s
         if watcher is not None:
             report['meshcat'] = {'frames': len(watcher.frames), 'rate_hz': watcher.rate(),
                                  'error': watcher.error}
@@ -226,7 +243,10 @@ def main(argv=None):
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--namespaces', nargs='+', default=['/'])
     parser.add_argument('--duration', type=float, default=10.0)
-    parser.add_argument('--warmup', type=float, default=2.0)
+    parser.add_argument('--warmup', type=float, default=2.0,
+                        help='s to wait after the first message of every topic')
+    parser.add_argument('--connect-timeout', type=float, default=10.0,
+                        help='s to wait at most for the first messages')
     parser.add_argument('--meshcat-url', default=None)
     parser.add_argument('--topics', nargs='*', default=None,
                         choices=[t[0] for t in HAIR_TOPICS], help='default: all')
@@ -234,7 +254,7 @@ def main(argv=None):
     rclpy.init()
     try:
         report = measure(args.namespaces, args.duration, args.warmup, args.meshcat_url,
-                         topics=args.topics)
+                         topics=args.topics, connect_timeout=args.connect_timeout)
     finally:
         rclpy.try_shutdown()
     print(json.dumps(report), flush=True)

@@ -2,9 +2,11 @@
 hair_sim_bench scale: cost per frame against the number of strips (thesis table 5.1).
 
 Styles of 20 .. 2000 strips are the sample style refined to that many strips (physics
-LOD). Per row: simulated and rendered vertices, physics step, frame (tessellation +
-U-shape), marker bytes and meshcat encoding in ms, and end-to-end frames per second
-with the default substeps per 60 Hz frame, beside the thesis' frames per second.
+LOD), each run with both strand models. Per row: simulated and rendered vertices, physics
+step, frame (tessellation + U-shape), the hair_mesh message (vertices only; the topology
+goes once per style), marker bytes and meshcat encoding in ms, message sizes before and
+after the topology split, and end-to-end frames per second with the default substeps per
+60 Hz frame, beside the thesis' frames per second.
 """
 
 import time
@@ -18,10 +20,27 @@ from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator
 from hair_sim.physics.simulator import SUBSTEPS_PER_60HZ_FRAME as SUBSTEPS
 from hair_sim.render import HairRenderer
 from hair_sim.sinks.markers import MarkerEncoder, MarkerLayout
+from hair_sim.sinks.mesh_msg import hair_mesh_cdr, hair_mesh_topology_cdr
 
 THESIS_FPS = {20: 81, 52: 79, 84: 67, 116: 59, 148: 46, 180: 41}
 STRIPS_FULL = [20, 52, 84, 116, 148, 180, 500, 1000, 2000]
 STRIPS_QUICK = [20, 180]
+MODELS = ('anjyo', 'articulated')
+FRAME_RATE = 60.0
+MARKER_RATE = 10.0             # the node's shipped marker_rate: markers in 1 frame of 6
+TEXTURE_EVERY = 30             # before the split, HairMesh carried the PNG every 30th message
+
+
+def bytes_before_split(mesh_bytes, topology, topology_bytes):
+    """
+    Return the mean bytes of a HairMesh before the topology split, per message.
+
+    That message carried the vertices, UVs, indices, offsets and strip ids every time and
+    the PNG every TEXTURE_EVERY-th: the two messages of now, less the PNG but once in
+    TEXTURE_EVERY, and less one header and topology id (within a few bytes).
+    """
+    png = len(topology.texture_png)
+    return mesh_bytes + topology_bytes - png + png / TEXTURE_EVERY
 
 
 def meshcat_encode(mesh):
@@ -61,15 +80,22 @@ def demo_scene(n_strips, model='anjyo'):
     return sim, step
 
 
-def row(n_strips, repeats):
-    """Measure one style size."""
-    sim, step = demo_scene(n_strips)
+def row(n_strips, repeats, model='anjyo'):
+    """Measure one style size with one strand model."""
+    sim, step = demo_scene(n_strips, model)
     step_ms = median_ms(step, repeats * SUBSTEPS)
     renderer = HairRenderer.for_simulator(sim)
     R, p = sim.head_pose
     # renderer.mesh, not mesh_of: that reuses the mesh of an unchanged state
     mesh_ms = median_ms(lambda: renderer.mesh(sim.pos, R, p), repeats)
     mesh = renderer.mesh(sim.pos, R, p)
+
+    def hair_mesh():
+        return hair_mesh_cdr(mesh.vertices, mesh.strip_ids, 1, 'world', 0, 0)
+
+    hair_mesh_ms = median_ms(hair_mesh, repeats)
+    topology = renderer.topology()
+    topology_bytes = len(hair_mesh_topology_cdr(topology, 1, 'world', 0, 0))
     layout = MarkerLayout(sim.strips.n_strips, mesh.tris_per_strip, mesh)
 
     encoder = MarkerEncoder(layout, mesh.texture_id, mesh.texture_png, 'head')
@@ -79,24 +105,35 @@ def row(n_strips, repeats):
 
     marker_ms = median_ms(markers, repeats)
     meshcat_ms = median_ms(lambda: meshcat_encode(mesh), max(3, repeats // 3))
-    frame_ms = SUBSTEPS * step_ms + mesh_ms + marker_ms
-    return {'strips': n_strips, 'simulated_vertices': int(sim.pos.shape[0] * sim.pos.shape[1]),
+    frame_ms = SUBSTEPS * step_ms + mesh_ms + hair_mesh_ms + marker_ms * MARKER_RATE / FRAME_RATE
+    every_frame_ms = SUBSTEPS * step_ms + mesh_ms + hair_mesh_ms + marker_ms
+    mesh_bytes = len(hair_mesh())
+    return {'model': model, 'strips': n_strips,
+            'simulated_vertices': int(sim.pos.shape[0] * sim.pos.shape[1]),
             'rendered_vertices': int(len(mesh.vertices)), 'physics_step_ms': step_ms,
-            'substeps_per_frame': SUBSTEPS, 'frame_ms': mesh_ms, 'marker_bytes_ms': marker_ms,
-            'marker_bytes': len(markers()), 'meshcat_encode_ms': meshcat_ms,
-            'end_to_end_ms': frame_ms, 'end_to_end_fps': 1e3 / frame_ms,
+            'substeps_per_frame': SUBSTEPS, 'frame_ms': mesh_ms, 'hair_mesh_ms': hair_mesh_ms,
+            'hair_mesh_bytes': mesh_bytes, 'hair_mesh_topology_bytes': topology_bytes,
+            'hair_mesh_bytes_before_split': bytes_before_split(mesh_bytes, topology,
+                                                               topology_bytes),
+            'marker_bytes_ms': marker_ms, 'marker_bytes': len(markers()),
+            'meshcat_encode_ms': meshcat_ms, 'end_to_end_ms': frame_ms,
+            'end_to_end_fps': 1e3 / frame_ms,
+            'end_to_end_fps_markers_every_frame': 1e3 / every_frame_ms,
             'thesis_fps': THESIS_FPS.get(n_strips)}
 
 
 def run(quick=False, plot_dir=None):
     """
-    Measure every size.
+    Measure every size with both models.
 
-    The meshcat encoding runs on its own thread in the node, so end to end counts the
-    physics substeps, the U-shape and the marker bytes (the ROS path).
+    The meshcat encoding runs on its own thread in the node, so end to end counts what the
+    node's own thread does for a 60 Hz frame: the physics substeps, the U-shape, the
+    hair_mesh bytes, and the marker bytes at the shipped marker_rate (one frame in six;
+    end_to_end_fps_markers_every_frame counts them in every frame).
     """
     sizes = STRIPS_QUICK if quick else STRIPS_FULL
-    records = [row(n, 5 if quick else 30) for n in progress(sizes, 'scale')]
+    records = [row(n, 5 if quick else 30, model)
+               for model, n in progress([(m, n) for m in MODELS for n in sizes], 'scale')]
     if plot_dir:
         plot(records, plot_dir)
     return records
@@ -107,23 +144,31 @@ def plot(records, plot_dir):
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    n = [r['strips'] for r in records]
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
-    a.loglog(n, [r['end_to_end_fps'] for r in records], 'o-', label='hair_sim end to end')
-    t = [r for r in records if r['thesis_fps']]
+    for model, style in (('anjyo', 'o-'), ('articulated', 'v-')):
+        rs = [r for r in records if r['model'] == model]
+        a.loglog([r['strips'] for r in rs], [r['end_to_end_fps'] for r in rs], style,
+                 label='hair_sim end to end, %s' % model)
+    t = [r for r in records if r['thesis_fps'] and r['model'] == 'anjyo']
     a.loglog([r['strips'] for r in t], [r['thesis_fps'] for r in t], 's--',
              label='thesis table 5.1 (2003)')
     a.axhline(60, color='0.6', ls=':', lw=0.8)
     a.set_xlabel('strips')
     a.set_ylabel('frames per second')
-    a.legend()
+    a.legend(fontsize=7)
+    rs = [r for r in records if r['model'] == 'anjyo']
+    n = [r['strips'] for r in rs]
     series = (('physics_step_ms', 'physics step'), ('frame_ms', 'tessellation + U-shape'),
-              ('marker_bytes_ms', 'marker bytes'), ('meshcat_encode_ms', 'meshcat encode'),
-              ('end_to_end_ms', 'end to end (%d steps)' % records[0]['substeps_per_frame']))
+              ('hair_mesh_ms', 'hair_mesh bytes'), ('marker_bytes_ms', 'marker bytes'),
+              ('meshcat_encode_ms', 'meshcat encode'),
+              ('end_to_end_ms', 'end to end (%d steps)' % rs[0]['substeps_per_frame']))
     for key, label in series:
-        b.loglog(n, [r[key] for r in records], 'o-', label=label)
+        b.loglog(n, [r[key] for r in rs], 'o-', label=label)
+    ra = [r for r in records if r['model'] == 'articulated']
+    b.loglog([r['strips'] for r in ra], [r['physics_step_ms'] for r in ra], 'v--',
+             label='physics step, articulated')
     b.set_xlabel('strips')
-    b.set_ylabel('ms')
+    b.set_ylabel('ms (anjyo unless marked)')
     b.legend(fontsize=7)
     fig.suptitle('hair_sim_bench scale (one core)')
     path = save_figure(fig, '%s/scale.png' % plot_dir)

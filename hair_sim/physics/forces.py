@@ -491,10 +491,9 @@ def guard_segment(start, end, seg_len, spheres, mask):
             sx, sy, sz = px - cx, py - cy, pz - cz
             if sx * sx + sy * sy + sz * sz < (r - START_INSIDE) * (r - START_INSIDE):
                 continue
-            d = sqrt(d2)
             tx, ty, tz = 0.0, 0.0, 0.0
             hit = False
-            if d < r:
+            if d2 < r * r:
                 # The end p + l d' stays outside iff d'.u <= kappa (u: unit vector from p to
                 # the centre, D: their distance): project d onto that cone, exactly.
                 D = sqrt(sx * sx + sy * sy + sz * sz)
@@ -516,15 +515,20 @@ def guard_segment(start, end, seg_len, spheres, mask):
                 # on the sphere (at most l^2 / 8r); one whose start is clear of the skin
                 # may dip SEGMENT_TOLERANCE. The allowance is continuous in the start's
                 # height and the guard stops exactly at it, so a resting segment reaches a
-                # fixed point instead of flickering across a threshold.
-                ds = sqrt(sx * sx + sy * sy + sz * sz)
-                allow = SEGMENT_TOLERANCE + seg_len * seg_len / (8.0 * r) * min(
-                    1.0, max(0.0, (r + CONTACT_SKIN - ds) / CONTACT_SKIN))
+                # fixed point instead of flickering across a threshold. Only a segment
+                # whose nearest inner point is inside the sphere can be too deep: the
+                # square roots come after that test.
                 ux, uy, uz = ex - px, ey - py, ez - pz
                 tt = -(sx * ux + sy * uy + sz * uz) / (seg_len * seg_len)
                 if 0.0 < tt < 1.0:
                     qx, qy, qz = sx + tt * ux, sy + tt * uy, sz + tt * uz
-                    dq = sqrt(qx * qx + qy * qy + qz * qz)
+                    dq2 = qx * qx + qy * qy + qz * qz
+                    if dq2 >= r * r:
+                        continue
+                    dq = sqrt(dq2)
+                    ds = sqrt(sx * sx + sy * sy + sz * sz)
+                    allow = SEGMENT_TOLERANCE + seg_len * seg_len / (8.0 * r) * min(
+                        1.0, max(0.0, (r + CONTACT_SKIN - ds) / CONTACT_SKIN))
                     if dq < r - allow:
                         f = (r - allow + 1e-6) / max(dq, 1e-12)
                         # where the segment's point at tt must go, seen from p

@@ -643,6 +643,8 @@ class HairSimulator:
         """Return the counters and the head-motion verdict counts, for a status report."""
         out = dict(self.counters)
         out.update({'pose_' + k: v for k, v in self.motion.counts.items()})
+        # articulated: the share of joints made stiffer than the material to hold the style
+        out['stiffened_joints'] = round(getattr(self.solver, 'stiffened', 0.0), 4)
         return out
 
 

@@ -45,6 +45,27 @@ class HairMesh:
         return len(self.strip_ids)
 
 
+@dataclass(frozen=True)
+class MeshTopology:
+    """
+    What the mesh of every strip of a style has apart from its vertices (one per renderer).
+
+    uvs (n_strips * verts_per_strip, 2) float32, indices (n_strips * tris_per_strip, 3)
+    uint32 numbering every strip's vertices s * verts_per_strip onwards, strip_offsets
+    (n_strips + 1,) uint32, and the texture. A HairMesh of k drawn strips (strip_ids) is
+    laid out by it: its vertices are those strips' blocks, in order.
+    """
+
+    n_strips: int
+    verts_per_strip: int
+    tris_per_strip: int
+    uvs: np.ndarray
+    indices: np.ndarray
+    strip_offsets: np.ndarray
+    texture_id: str
+    texture_png: bytes
+
+
 class HairRenderer:
     """Tessellate (Oslo), warp into U-shapes (3.2), texture and cull the strips of a style."""
 
@@ -77,7 +98,7 @@ class HairRenderer:
         self._base = (np.arange(self.n_strips) * nv).astype(np.uint32)[:, None, None]
         self._uvs_all = np.tile(self.lod.uvs, (self.n_strips, 1))
         self._offsets_all = (np.arange(self.n_strips + 1) * nt).astype(np.uint32)
-        self._cache_all = None
+        self._topology = None
         self._grid = np.zeros((self.n_strips, self.lod.columns, self.lod.rows, 3))
         self._out = np.zeros((self.n_strips, self.lod.verts_per_strip, 3))
         self._flags = np.zeros((self.n_strips, 2, self.lod.rows), dtype=np.int64)
@@ -85,6 +106,17 @@ class HairRenderer:
         self._bottoms = np.zeros_like(rest)
         self._last_key = None
         self._last = None
+
+    def topology(self):
+        """Return the MeshTopology of every strip (built once; it never changes)."""
+        if self._topology is None:
+            nv, nt = self.lod.verts_per_strip, self.lod.tris_per_strip
+            self._topology = MeshTopology(
+                n_strips=self.n_strips, verts_per_strip=nv, tris_per_strip=nt,
+                uvs=self._uvs_all, indices=(self._local + self._base).reshape(-1, 3),
+                strip_offsets=self._offsets_all, texture_id=self.texture_id,
+                texture_png=self.texture)
+        return self._topology
 
     @classmethod
     def for_simulator(cls, sim, point_centre=False):
@@ -159,14 +191,13 @@ class HairRenderer:
             flags,
         )
         nv, nt = self.lod.verts_per_strip, self.lod.tris_per_strip
-        if viewpoint is None and self._cache_all is not None:
-            indices, uvs, offsets = self._cache_all
+        if viewpoint is None:                  # every strip: the topology's arrays
+            topology = self.topology()
+            indices, uvs, offsets = topology.indices, topology.uvs, topology.strip_offsets
         else:
             indices = (self._local[sel] + self._base[:k]).reshape(-1, 3)
             uvs = self._uvs_all[:k * nv]
             offsets = self._offsets_all[:k + 1]
-            if viewpoint is None:
-                self._cache_all = (indices, uvs, offsets)
         self.last_f64 = out                 # float64 U-shape vertices of this frame (k, nv, 3)
         if not walls:
             keep = (np.arange(nt) < 2 * (self.lod.columns - 1) * (self.lod.rows - 1))

@@ -16,6 +16,7 @@ from collections import namedtuple
 from math import sqrt
 
 from numba import njit
+import numpy as np
 
 from hair_sim.vecmath import perpendicular_unit
 
@@ -37,15 +38,16 @@ def tangent_point(ax, ay, az, bx, by, bz, o, rs):
     d = sqrt(ux * ux + uy * uy + uz * uz)
     if rs <= 0.0 or d <= rs:
         return o[0], o[1], o[2]
-    ux /= d
-    uy /= d
-    uz /= d
+    inv = 1.0 / d
+    ux *= inv
+    uy *= inv
+    uz *= inv
     # y axis of the local frame: in the plane of A, B, O, perpendicular to AO, towards B
     yx, yy, yz = perpendicular_unit(bx - ax, by - ay, bz - az, ux, uy, uz, 1e-15)
     # AA' makes angle beta = asin(rs / d) with AO, turned away from B (-y)
-    sb = rs / d
+    sb = rs * inv
     cb = sqrt(1.0 - sb * sb)
-    t = sqrt(d * d - rs * rs)                     # tangent length |AA'|
+    t = d * cb                                    # tangent length |AA'| = sqrt(d^2 - rs^2)
     return (ax + t * (cb * ux - sb * yx), ay + t * (cb * uy - sb * yy),
             az + t * (cb * uz - sb * yz))
 
@@ -61,25 +63,78 @@ def _inside_scalp_by(x, y, z, scalp, depth):
 
 
 @njit(cache=True)
-def project_to_scalp(ax, ay, az, px, py, pz, scalp, delta):
+def project_to_scalp(a, target, scalp, delta, spans):
     """
     Bisect from A (outside) towards A' (inside) until |XY| <= delta (thesis 3.2).
 
     Returns the midpoint of the final X and Y, within delta / 2 of the boundary like X, so
     that a vertex already on the scalp (a root) still gets a wall of non-zero depth.
     A vertex deeper than delta inside the scalp is its own projection.
+
+    The bisection runs on the parameter t of A + t (A' - A): where that segment is inside
+    each scalp sphere is an interval of t (one square root per sphere, written into the
+    scratch array spans (n_scalp, 2)), so a midpoint's test is a few comparisons instead
+    of a distance to every sphere. The midpoints and the result are those of the bisection
+    between the points (to rounding).
     """
+    ax, ay, az = a
     if _inside_scalp_by(ax, ay, az, scalp, delta):
         return ax, ay, az
-    xx, xy, xz = ax, ay, az
-    yx, yy, yz = px, py, pz
-    while (xx - yx) ** 2 + (xy - yy) ** 2 + (xz - yz) ** 2 > delta * delta:
-        zx, zy, zz = 0.5 * (xx + yx), 0.5 * (xy + yy), 0.5 * (xz + yz)
-        if _inside_scalp_by(zx, zy, zz, scalp, 0.0):
-            yx, yy, yz = zx, zy, zz
+    vx, vy, vz = target[0] - ax, target[1] - ay, target[2] - az
+    vv = vx * vx + vy * vy + vz * vz
+    if vv == 0.0:
+        return ax, ay, az
+    inv_vv = 1.0 / vv
+    for k in range(scalp.shape[0]):
+        # |w + t v|^2 < r^2, w = A - centre: the open interval between the roots
+        wx, wy, wz = ax - scalp[k, 0], ay - scalp[k, 1], az - scalp[k, 2]
+        b = wx * vx + wy * vy + wz * vz
+        r = scalp[k, 3]
+        disc = b * b - vv * (wx * wx + wy * wy + wz * wz - r * r)
+        if disc <= 0.0:
+            spans[k, 0], spans[k, 1] = 1.0, 0.0          # never inside
         else:
-            xx, xy, xz = zx, zy, zz
-    return 0.5 * (xx + yx), 0.5 * (xy + yy), 0.5 * (xz + yz)
+            sq = sqrt(disc)
+            spans[k, 0], spans[k, 1] = (-b - sq) * inv_vv, (-b + sq) * inv_vv
+    # the bisection halves [0, 1] n times, n the first with (2^-n)^2 |AA'|^2 <= delta^2
+    width = 1.0
+    scale = 1.0                   # 1 / width, a power of two like it: exact
+    d2 = delta * delta
+    while width * width * vv > d2:
+        width *= 0.5
+        scale *= 2.0
+    # Entering the union once and staying in up to A' (the usual case), the midpoints
+    # compare with the entry t*: the last bracket is the dyadic one holding t*.
+    entry = 1.0
+    for k in range(scalp.shape[0]):
+        if spans[k, 1] > 0.0 and spans[k, 0] < entry:
+            entry = max(spans[k, 0], 0.0)
+    cover = entry
+    grown = True
+    while grown and cover < 1.0:
+        grown = False
+        for k in range(scalp.shape[0]):
+            if spans[k, 0] <= cover < spans[k, 1]:
+                cover = spans[k, 1]
+                grown = True
+    if cover >= 1.0 and 0.0 < entry < 1.0:
+        # (a midpoint exactly at t* is outside: X moves onto it, as floor has it)
+        t = (np.floor(entry * scale) + 0.5) * width
+        return ax + t * vx, ay + t * vy, az + t * vz
+    lo, hi = 0.0, 1.0            # in and out again: the bisection itself
+    while (hi - lo) * (hi - lo) * vv > d2:
+        mid = 0.5 * (lo + hi)
+        inside = False
+        for k in range(scalp.shape[0]):
+            if spans[k, 0] < mid < spans[k, 1]:
+                inside = True
+                break
+        if inside:
+            hi = mid
+        else:
+            lo = mid
+    t = 0.5 * (lo + hi)
+    return ax + t * vx, ay + t * vy, az + t * vz
 
 
 @njit(cache=True)
@@ -148,6 +203,7 @@ def ushape(grid,
                                 projection.delta)
     max_dist, fix_len = projection.max_dist, projection.fix_len
     K, C, R = grid.shape[0], grid.shape[1], grid.shape[2]
+    spans = np.empty((scalp.shape[0], 2))
     for k in range(K):
         sg = sigma[strips[k]]
         i = 0
@@ -157,19 +213,20 @@ def ushape(grid,
                 out[k, i, 1] = grid[k, c, r, 1]
                 out[k, i, 2] = grid[k, c, r, 2]
                 i += 1
-        for side in range(2):
-            ca = 0 if side == 0 else C - 1
-            cb = C - 1 if side == 0 else 0
-            for r in range(R):
+        for r in range(R):
+            # one normal per row, for both walls
+            r0, r1 = max(r - 1, 0), min(r + 1, R - 1)
+            nx, ny, nz = strip_normal(grid[k, 0, r], grid[k, C - 1, r],
+                                      grid[k, 0, r0], grid[k, C - 1, r0],
+                                      grid[k, 0, r1], grid[k, C - 1, r1])
+            nx, ny, nz = sg * nx, sg * ny, sg * nz              # towards the scalp side
+            for side in range(2):
+                ca = 0 if side == 0 else C - 1
+                cb = C - 1 if side == 0 else 0
                 ax, ay, az = grid[k, ca, r, 0], grid[k, ca, r, 1], grid[k, ca, r, 2]
                 bx, by, bz = grid[k, cb, r, 0], grid[k, cb, r, 1], grid[k, cb, r, 2]
                 tx, ty, tz = tangent_point(ax, ay, az, bx, by, bz, centre, rs)
-                px, py, pz = project_to_scalp(ax, ay, az, tx, ty, tz, scalp, delta)
-                r0, r1 = max(r - 1, 0), min(r + 1, R - 1)
-                nx, ny, nz = strip_normal(grid[k, 0, r], grid[k, C - 1, r],
-                                          grid[k, 0, r0], grid[k, C - 1, r0],
-                                          grid[k, 0, r1], grid[k, C - 1, r1])
-                nx, ny, nz = sg * nx, sg * ny, sg * nz          # towards the scalp side
+                px, py, pz = project_to_scalp((ax, ay, az), (tx, ty, tz), scalp, delta, spans)
                 vx, vy, vz = px - ax, py - ay, pz - az
                 dist = sqrt(vx * vx + vy * vy + vz * vz)
                 flag = 0
@@ -201,6 +258,7 @@ def strip_wall_bottoms(pos,
                                 projection.delta)
     max_dist, fix_len = projection.max_dist, projection.fix_len
     V = pos.shape[1]
+    spans = np.empty((scalp.shape[0], 2))
     l0, l1 = strip_strands[s, 0], strip_strands[s, 1]
     for side in range(2):
         a = strip_strands[s, side]
@@ -209,7 +267,7 @@ def strip_wall_bottoms(pos,
             ax, ay, az = pos[a, j, 0], pos[a, j, 1], pos[a, j, 2]
             tx, ty, tz = tangent_point(ax, ay, az, pos[b, j, 0], pos[b, j, 1], pos[b, j, 2],
                                        centre, rs)
-            px, py, pz = project_to_scalp(ax, ay, az, tx, ty, tz, scalp, delta)
+            px, py, pz = project_to_scalp((ax, ay, az), (tx, ty, tz), scalp, delta, spans)
             # the strip normal AB x AC with A the left edge, as ushape() takes it
             j0, j1 = max(j - 1, 0), min(j + 1, V - 1)
             nx, ny, nz = strip_normal(pos[l0, j], pos[l1, j], pos[l0, j0], pos[l1, j0],

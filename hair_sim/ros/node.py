@@ -25,7 +25,7 @@ import traceback
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
-from hair_sim_msgs.msg import HairMesh, HairState, Wind
+from hair_sim_msgs.msg import HairMesh, HairMeshTopology, HairState, Wind
 from hair_sim_msgs.srv import EditControlPoint, LoadHairstyle, SaveHairstyle
 import numpy as np
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
@@ -53,10 +53,14 @@ from hair_sim.ros.scene import Scene, SceneBuilder
 from hair_sim.sinks.markers import (delete_all_markers, head_marker_cdr, head_sphere_markers,
                                     MarkerEncoder, MarkerLayout)
 from hair_sim.sinks.meshcat_sink import CAMERA_VIEWS
-from hair_sim.sinks.mesh_msg import hair_mesh_cdr, hair_state_cdr
+from hair_sim.sinks.mesh_msg import hair_mesh_cdr, hair_mesh_topology_cdr, hair_state_cdr
 
 LATENCY_WINDOW = 600            # publishes kept for the latency percentiles
 MAX_MESSAGE = 300               # characters of a refusal reason sent back
+# Requests (and answers) wait in a keep-last history of this depth: rmw_fastrtps drops the
+# oldest beyond it. The default 10 lost loads fired at 40 a second whenever the executor
+# was held up for a quarter of a second; 100 holds 2.5 s of such a stream.
+SERVICE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def _descriptor(default, description, rng):
@@ -123,7 +127,7 @@ class HairSimNode(Node):
         self._committed = 0               # seq of the last build job swapped in
         self._encoder = None
         self._encoder_key = None
-        self._mesh_count = 0
+        self._topology_sent = None        # scene version whose topology was last sent
         self._clock_last = None
         self._acc = 0.0
         self.meshcat = None
@@ -147,19 +151,23 @@ class HairSimNode(Node):
         self._head_source = None          # (head file, mesh name) of self._head_mesh
         self._head_mesh = None
         self.pub_mesh = self.create_publisher(HairMesh, 'hair_mesh', reliable)
+        # UVs, triangles, offsets and texture: sent when the style (its scene) changes, kept
+        # for late subscribers; hair_mesh then carries the vertices only
+        self.pub_topology = self.create_publisher(HairMeshTopology, 'hair_mesh_topology',
+                                                  latched)
         self.pub_state = self.create_publisher(HairState, 'hair_state', reliable)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._make_tf_publisher()
         # The build services wait (as coroutines) for the worker while the timers run on:
         # they need a callback group of their own, one that lets several wait at once.
         services = ReentrantCallbackGroup()
-        self.create_service(Trigger, '~/reset', self._on_reset)
+        self.create_service(Trigger, '~/reset', self._on_reset, qos_profile=SERVICE_QOS)
         self.create_service(LoadHairstyle, '~/load_hairstyle', self._on_load,
-                            callback_group=services)
+                            qos_profile=SERVICE_QOS, callback_group=services)
         self.create_service(EditControlPoint, '~/edit_control_point', self._on_edit,
-                            callback_group=services)
+                            qos_profile=SERVICE_QOS, callback_group=services)
         self.create_service(SaveHairstyle, '~/save_hairstyle', self._on_save,
-                            callback_group=services)
+                            qos_profile=SERVICE_QOS, callback_group=services)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self.frame_timer = self.create_timer(1.0 / self._p('frame_rate'), self._on_frame)
@@ -362,24 +370,29 @@ class HairSimNode(Node):
         jobs.sort(key=lambda j: j.seq)
         newest = max((j for j in jobs if j.error is None and j.result is not None
                       and j.result[0] is not None), key=lambda j: j.seq, default=None)
-        for job in jobs:
-            if job.error is not None:
-                ok = False
-                if isinstance(job.error, (HairstyleError, ValueError, OSError)):
-                    message = self._refuse(job.kind, job.error)
-                else:
-                    self._internal_error('build ' + job.kind, job.error)
-                    message = 'internal error: %s' % _short(job.error)
-            elif job.result[0] is None:                  # no new scene (a save)
-                ok, message = True, job.result[2]
-            elif job is newest and job.seq > self._committed:
-                ok, message = self._swap(job)
-            else:
-                ok, message = True, '%s; superseded by a later change' % job.result[2]
+        for job in jobs:                  # every job is answered, whatever one of them does
+            try:
+                ok, message = self._settle(job, job is newest)
+            except Exception as exc:                  # noqa: B902
+                self._internal_error('swap ' + job.kind, exc)
+                ok, message = False, 'internal error: %s' % _short(exc)
             if job.future is not None:
                 job.future.set_result((ok, message))
             elif not ok:
                 self.get_logger().error('%s: %s' % (job.kind, message))
+
+    def _settle(self, job, newest):
+        """Return (ok, message) for a finished job; swap its scene in if it is the newest."""
+        if job.error is not None:
+            if isinstance(job.error, (HairstyleError, ValueError, OSError)):
+                return False, self._refuse(job.kind, job.error)
+            self._internal_error('build ' + job.kind, job.error)
+            return False, 'internal error: %s' % _short(job.error)
+        if job.result[0] is None:                     # no new scene (a save)
+            return True, job.result[2]
+        if newest and job.seq > self._committed:
+            return self._swap(job)
+        return True, '%s; superseded by a later change' % job.result[2]
 
     def _swap(self, job):
         sim, renderer, message = job.result
@@ -562,9 +575,14 @@ class HairSimNode(Node):
         sec, nsec = self._stamp_now()
         world = self._p('world_frame')
         if self._p('publish_mesh'):
-            with_tex = self._mesh_count % self._p('texture_every') == 0
-            self.pub_mesh.publish(hair_mesh_cdr(mesh, mesh.vertices, world, sec, nsec, with_tex))
-            self._mesh_count += 1
+            topology_id = scene.version % 2 ** 32
+            if self._topology_sent != scene.version:    # first, so it is there before its mesh
+                self.pub_topology.publish(hair_mesh_topology_cdr(
+                    scene.renderer.topology(), topology_id, world, sec, nsec))
+                self._topology_sent = scene.version
+                self.counts['topologies_published'] += 1
+            self.pub_mesh.publish(hair_mesh_cdr(mesh.vertices, mesh.strip_ids, topology_id,
+                                                world, sec, nsec))
         if self._p('publish_state'):
             self.pub_state.publish(hair_state_cdr(sim.pos, sim.sleeping, sim.last_step_time,
                                                   world, sec, nsec))

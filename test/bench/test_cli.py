@@ -32,13 +32,19 @@ def test_accuracy_quick(tmp_path):
 
 
 def test_scale_quick(tmp_path):
-    """Rows with the documented columns and a plot."""
+    """Rows of both models with the documented columns, hair_mesh sizes, and a plot."""
     rc, rows = bench('scale', tmp_path)
     assert rc == 0
+    assert {r['model'] for r in rows} == {'anjyo', 'articulated'}
     for r in rows:
         assert {'strips', 'simulated_vertices', 'rendered_vertices', 'physics_step_ms',
-                'frame_ms', 'marker_bytes_ms', 'meshcat_encode_ms', 'end_to_end_fps',
-                'thesis_fps'} <= set(r)
+                'frame_ms', 'hair_mesh_ms', 'marker_bytes_ms', 'meshcat_encode_ms',
+                'end_to_end_fps', 'end_to_end_fps_markers_every_frame', 'thesis_fps'} <= set(r)
+        # hair_mesh is the vertices (12 bytes each) and a small header, strip ids
+        extra = r['hair_mesh_bytes'] - 12 * r['rendered_vertices']
+        assert 0 < extra < 100 + 4 * r['strips']
+        assert r['hair_mesh_bytes_before_split'] > 2 * r['hair_mesh_bytes']
+        assert r['end_to_end_fps'] >= r['end_to_end_fps_markers_every_frame']
     assert rows[0]['rendered_vertices'] > rows[0]['simulated_vertices']
     assert os.path.isfile(tmp_path / 'scale.png')
 

@@ -1,4 +1,8 @@
-"""Publish a deterministic HairMesh on `hair_mesh_probe` until killed (cross-process tests)."""
+"""
+Publish a deterministic HairMesh and HairMeshTopology until killed (cross-process tests).
+
+On `hair_mesh_probe` and `hair_mesh_topology_probe`.
+"""
 
 import sys
 import time
@@ -20,23 +24,31 @@ def probe_mesh(n_vertices, seed):
 
 def main():
     """Publish the probe mesh at 10 Hz."""
-    from hair_sim_msgs.msg import HairMesh
+    from hair_sim_msgs.msg import HairMesh, HairMeshTopology
 
     n_vertices, seed = int(sys.argv[1]), int(sys.argv[2])
     vertices, uvs, indices, offsets = probe_mesh(n_vertices, seed)
     rclpy.init()
     node = rclpy.create_node('hair_mesh_probe_publisher')
     pub = node.create_publisher(HairMesh, 'hair_mesh_probe', 10)
+    pub_topology = node.create_publisher(HairMeshTopology, 'hair_mesh_topology_probe', 10)
     msg = HairMesh()
     msg.header.frame_id = 'head'
+    msg.topology_id = seed
+    msg.strip_ids = np.arange(len(offsets) - 1, dtype=np.uint32)
     msg.vertices = vertices
-    msg.uvs = uvs
-    msg.indices = indices
-    msg.strip_offsets = offsets
-    msg.texture_id = 'probe-%d' % seed
+    topology = HairMeshTopology()
+    topology.topology_id = seed
+    topology.n_strips = len(offsets) - 1
+    topology.uvs = uvs
+    topology.indices = indices
+    topology.strip_offsets = offsets
+    topology.texture_id = 'probe-%d' % seed
+    topology.texture_png = bytes(range(256))
     try:
         while rclpy.ok():
             pub.publish(msg)
+            pub_topology.publish(topology)
             time.sleep(0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

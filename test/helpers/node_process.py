@@ -126,6 +126,41 @@ def wait_for(predicate, timeout):
     return predicate()
 
 
+class ProbeProcess:
+    """
+    hair_sim.bench.probe running beside a test: started, then waited for while it records.
+
+    The probe subscribes raw in its own process: what any subscriber gets, not what this
+    test process's executor finds time to take in (after a storm of service calls it has
+    been seen taking in 15 Hz of a topic the probe got at 30.0). It waits for its first
+    messages (discovery), then `warmup` s, then records for `duration` s.
+    """
+
+    def __init__(self, duration, namespaces=('/',), topics=('hair_state',), warmup=0.2):
+        self.duration = duration
+        self.proc = subprocess.Popen([sys.executable, '-m', 'hair_sim.bench.probe',
+                                      '--duration', str(duration), '--warmup', str(warmup),
+                                      '--namespaces', *namespaces, '--topics', *topics],
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        # it says so on stderr when the window opens (after its discovery)
+        for line in self.proc.stderr:
+            if 'recording' in line:
+                break
+
+    def report(self):
+        """Wait for the probe; return its JSON report."""
+        import json
+        out, err = self.proc.communicate(timeout=60.0 + self.duration)
+        assert self.proc.returncode == 0, err[-2000:]
+        return json.loads(out.strip().splitlines()[-1])
+
+
+def probe_rates(window, namespaces=('/',), topics=('hair_state',)):
+    """Return {namespace: {topic: Hz}} measured by a ProbeProcess over `window` s."""
+    report = ProbeProcess(max(window, 0.5), namespaces, topics, warmup=0.5).report()
+    return {ns: {t: report[ns][t]['rate_hz'] for t in topics} for ns in namespaces}
+
+
 def rate(arrivals, since):
     """Return how many records per second arrived after `since` (records: time, message)."""
     t = [a for a, _ in arrivals if a >= since]

@@ -330,6 +330,12 @@ def test_shipped_styles_hold_their_modeled_shape(style_name):
         rms.append(float(np.sqrt(((sim.pos - modeled) ** 2).sum(-1).mean())))
     assert max(rms) < 2e-3, rms
     assert rms[1] <= rms[0] + 1e-4                   # not drifting away
+    # the stiffened share is reported: the joints whose spring exceeds the material's
+    p = sim.params
+    material = p.bending_stiffness / sim.length
+    material[:, 0] *= p.root_stiffness_scale
+    stiffer = float((sim.solver.k > material * (1 + 1e-12)).mean())
+    assert sim.diagnostics()['stiffened_joints'] == pytest.approx(stiffer, abs=1e-4)
 
 
 @pytest.mark.parametrize('style_name', ['bob_fringe', 'thesis_long'])

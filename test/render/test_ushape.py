@@ -1,6 +1,7 @@
 """U-shape strips (thesis 3.1, 3.2): projections, fix-ups, winding, UVs and counts."""
 
 import numpy as np
+import pytest
 
 from hair_sim.render import mesh as mesh_mod, ushape
 
@@ -158,3 +159,47 @@ def test_nothing_is_stored_between_frames(settled, renderer):
     np.testing.assert_allclose(moved.vertices - a.vertices, np.tile([0, 0, 0.001],
                                                                     (len(a.vertices), 1)),
                                atol=2e-6)
+
+
+def bisect_between_points(a, target, scalp, delta):
+    """Thesis 3.2 as written: bisect between the points X (outside) and Y (inside)."""
+    def inside(q, depth):
+        return bool((np.linalg.norm(q - scalp[:, :3], axis=1) < scalp[:, 3] - depth).any())
+    a, target = np.asarray(a, float), np.asarray(target, float)
+    if inside(a, delta):
+        return a
+    x, y = a.copy(), target.copy()
+    while ((x - y) ** 2).sum() > delta * delta:
+        z = 0.5 * (x + y)
+        if inside(z, 0.0):
+            y = z
+        else:
+            x = z
+    return 0.5 * (x + y)
+
+
+@pytest.mark.parametrize('n_spheres', [1, 2, 5, 12])
+def test_projection_is_the_bisection_between_points(n_spheres):
+    """
+    project_to_scalp gives the thesis' bisection between the points.
+
+    It bisects the segment's parameter with the spheres' intervals. Segments that enter
+    once, that graze, that pass through a sphere and out again, that end outside, and that
+    start within delta of the skin.
+    """
+    rng = np.random.default_rng(n_spheres)
+    delta = 5e-4
+    spans = np.empty((n_spheres, 2))
+    kinds = set()
+    for _ in range(400):
+        scalp = np.column_stack([rng.normal(scale=0.03, size=(n_spheres, 3)),
+                                 rng.uniform(0.02, 0.08, n_spheres)])
+        a = rng.normal(size=3)
+        a *= rng.uniform(0.06, 0.3) / np.linalg.norm(a)
+        target = rng.normal(scale=0.05, size=3) * rng.choice([0.2, 1.0, 4.0])
+        got = np.array(ushape.project_to_scalp(tuple(a), tuple(target), scalp, delta, spans))
+        want = bisect_between_points(a, target, scalp, delta)
+        np.testing.assert_allclose(got, want, atol=1e-12)
+        d = np.linalg.norm(target - scalp[:, :3], axis=1) < scalp[:, 3]
+        kinds.add('ends inside' if d.any() else 'ends outside')
+    assert kinds == {'ends inside', 'ends outside'}

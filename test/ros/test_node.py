@@ -3,6 +3,7 @@
 import os
 import subprocess
 import sys
+import time
 
 import numpy as np
 from rclpy.parameter import Parameter
@@ -52,17 +53,36 @@ def test_poses_from_another_process_move_the_published_hair(node_env):
 
 
 def test_markers_and_mesh_are_published_consistently(node_env):
-    """hair_markers: 3 points per triangle, a UV each, PNG texture; hair_mesh: same triangles."""
-    from hair_sim_msgs.msg import HairMesh
+    """
+    hair_markers: 3 points per triangle, a UV each, PNG texture; hair_mesh: same triangles.
+
+    hair_mesh carries the vertices of the topology latched on hair_mesh_topology, which a
+    subscriber that joins late still gets, and which is sent again with a new style only.
+    """
+    from hair_sim_msgs.msg import HairMesh, HairMeshTopology
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from visualization_msgs.msg import MarkerArray
     _, ex, node, client = node_env
-    markers, meshes = [], []
+    markers, meshes, topologies = [], [], []
     client.create_subscription(MarkerArray, 'hair_markers', markers.append, 10)
     client.create_subscription(HairMesh, 'hair_mesh', meshes.append, 10)
-    assert spin_until(ex, lambda: markers and meshes, 20.0)
-    m, h = markers[-1], meshes[-1]
+    assert spin_until(ex, lambda: markers and len(meshes) > 3, 20.0)
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    client.create_subscription(HairMeshTopology, 'hair_mesh_topology', topologies.append,
+                               latched)                 # joins after it was sent
+    assert spin_until(ex, lambda: topologies, 10.0), 'the topology did not reach a late subscriber'
+    spin_until(ex, lambda: False, 0.5)
+    assert len(topologies) == 1 and node.counts['topologies_published'] == 1
+    m, h, t = markers[-1], meshes[-1], topologies[-1]
+    nv = t.vertices_per_strip
+    assert h.topology_id == t.topology_id and list(h.strip_ids) == list(range(t.n_strips))
+    assert len(h.vertices) == 3 * nv * t.n_strips == 3 * len(t.uvs) // 2
+    assert len(t.indices) == 3 * t.triangles_per_strip * t.n_strips
+    assert max(t.indices) == nv * t.n_strips - 1 and t.strip_offsets[-1] == len(t.indices) // 3
     n_points = sum(len(x.points) for x in m.markers)
-    assert n_points == len(h.indices) and n_points % 3 == 0
+    assert n_points == len(t.indices) and n_points % 3 == 0
+    assert bytes(t.texture_png[:8]) == b'\x89PNG\r\n\x1a\n' and t.texture_id
     assert all(len(x.uv_coordinates) == len(x.points) < 65000 for x in m.markers)
     assert all(x.texture.format == 'png' and len(x.texture.data) > 100 for x in m.markers)
     # markers a plain RViz shows: world frame by default (test_frames.py has the rules)
@@ -148,11 +168,26 @@ def test_services_load_edit_save_reload_reset(node_env, tmp_path):
     """Load a shipped style, edit (the mesh changes near that control hair only), save, reload."""
     from hair_sim_msgs.srv import EditControlPoint, LoadHairstyle, SaveHairstyle
     from std_srvs.srv import Trigger
+    from hair_sim_msgs.msg import HairMesh, HairMeshTopology
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     _, ex, node, client = node_env
+    topologies, meshes = [], []
+    client.create_subscription(HairMeshTopology, 'hair_mesh_topology', topologies.append,
+                               QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                                          durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    client.create_subscription(HairMesh, 'hair_mesh', meshes.append, 10)
+    assert spin_until(ex, lambda: topologies, 10.0)
     r = call(ex, client, LoadHairstyle, '/hair_sim/load_hairstyle',
              LoadHairstyle.Request(path='bob_fringe'))
     assert r.success, r.message
     assert node.sim.style.name == 'bob_fringe'
+    # the new style's topology follows, with a new id, and the meshes after it use it
+    n = node.sim.strips.n_strips
+    assert spin_until(ex, lambda: len(topologies) == 2 and meshes and
+                      meshes[-1].topology_id == topologies[-1].topology_id, 10.0)
+    new = topologies[-1]
+    assert new.topology_id != topologies[0].topology_id and new.n_strips == n
+    assert len(meshes[-1].vertices) == 3 * n * new.vertices_per_strip
     r = call(ex, client, LoadHairstyle, '/hair_sim/load_hairstyle',
              LoadHairstyle.Request(path='no_such_style'))
     assert not r.success and 'no hairstyle' in r.message
@@ -197,3 +232,34 @@ def test_services_load_edit_save_reload_reset(node_env, tmp_path):
     np.testing.assert_allclose(node.sim.pos, node.sim.rest @ node.sim.head_pose[0].T
                                + node.sim.head_pose[1], atol=1e-12)
     assert os.path.isfile(paths.shipped_style('bob_fringe'))
+
+
+def test_requests_queued_while_the_node_is_held_up_are_all_answered(node_env):
+    """
+    60 loads and 60 resets sent while the node's executor does not run are all answered.
+
+    The node does not spin while they are sent (as when a frame, a garbage collection or a
+    loaded machine holds it up), so they wait in the services' request histories; with the
+    default depth of 10 the oldest 50 of each were dropped and never answered. The client
+    fires without waiting, so its answers need a history as deep.
+    """
+    from hair_sim_msgs.srv import LoadHairstyle
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from std_srvs.srv import Trigger
+    _, ex, node, client = node_env
+    deep = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
+    loads = client.create_client(LoadHairstyle, '/hair_sim/load_hairstyle', qos_profile=deep)
+    resets = client.create_client(Trigger, '/hair_sim/reset', qos_profile=deep)
+    assert loads.wait_for_service(timeout_sec=10.0) and resets.wait_for_service(timeout_sec=10.0)
+    futures = []
+    for k in range(60):
+        name = ('bob_fringe', 'thesis_short')[k % 2]
+        futures.append(loads.call_async(LoadHairstyle.Request(path=name)))
+        futures.append(resets.call_async(Trigger.Request()))
+    time.sleep(1.0)                                   # all of them arrive before the node runs
+    assert spin_until(ex, lambda: all(f.done() for f in futures), 60.0), \
+        '%d of %d left unanswered' % (sum(not f.done() for f in futures), len(futures))
+    answers = [f.result() for f in futures]
+    assert all(a.success for a in answers[1::2])                  # the resets
+    assert all(a.success or 'busy' in a.message for a in answers[0::2]), answers[:4]
+    assert node.sim.style.name in ('bob_fringe', 'thesis_short')

@@ -11,7 +11,8 @@ from hair_sim.render import HairRenderer
 from hair_sim.sinks.cdr import same_bytes_but_padding
 from hair_sim.sinks.markers import (build_marker_array, marker_array_cdr, marker_geometry,
                                     MarkerLayout, MAX_POINTS)
-from hair_sim.sinks.mesh_msg import build_hair_mesh, hair_mesh_cdr, hair_state_cdr
+from hair_sim.sinks.mesh_msg import (build_hair_mesh, build_hair_mesh_topology, hair_mesh_cdr,
+                                     hair_mesh_topology_cdr, hair_state_cdr)
 
 
 def render(sim, viewpoint=None):
@@ -81,19 +82,30 @@ def test_marker_contents_follow_the_jazzy_rules():
     np.testing.assert_array_equal(pts1, pts2)
 
 
-def test_hair_mesh_and_state_fast_paths_are_byte_exact():
-    """The CDR of HairMesh and HairState equals rclpy's serialization of those messages."""
-    from hair_sim_msgs.msg import HairMesh, HairState
+def test_hair_mesh_topology_and_state_fast_paths_are_byte_exact():
+    """The CDR of HairMesh, HairMeshTopology and HairState equals rclpy's serialization."""
+    from hair_sim_msgs.msg import HairMesh, HairMeshTopology, HairState
     sim = moving_sim()
-    mesh = render(sim)
-    for tex in (True, False):
-        fast, pad = hair_mesh_cdr(mesh, mesh.vertices, 'world', 3, 4, tex, with_padding=True)
-        slow = build_hair_mesh(mesh, mesh.vertices, 'world', 3, 4, tex)
+    renderer = HairRenderer.for_simulator(sim)
+    R, p = sim.head_pose
+    for viewpoint in (None, [0.8, 0.0, 0.0]):
+        mesh = renderer.mesh(sim.pos, R, p, viewpoint)
+        fast, pad = hair_mesh_cdr(mesh.vertices, mesh.strip_ids, 7, 'world', 3, 4,
+                                  with_padding=True)
+        slow = build_hair_mesh(mesh.vertices, mesh.strip_ids, 7, 'world', 3, 4)
         assert same_bytes_but_padding(fast, serialize_message(slow), pad)
         back = deserialize_message(fast, HairMesh)
-        assert back == slow
-        np.testing.assert_array_equal(np.asarray(back.indices, np.uint32),
-                                      mesh.indices.reshape(-1))
+        assert back == slow and back.topology_id == 7
+        np.testing.assert_array_equal(np.asarray(back.vertices, np.float32),
+                                      mesh.vertices.reshape(-1))
+    topology = renderer.topology()
+    fast, pad = hair_mesh_topology_cdr(topology, 7, 'world', 3, 4, with_padding=True)
+    slow = build_hair_mesh_topology(topology, 7, 'world', 3, 4)
+    assert same_bytes_but_padding(fast, serialize_message(slow), pad)
+    back = deserialize_message(fast, HairMeshTopology)
+    assert back == slow and bytes(back.texture_png) == topology.texture_png
+    np.testing.assert_array_equal(np.asarray(back.indices, np.uint32),
+                                  topology.indices.reshape(-1))
     st, pad = hair_state_cdr(sim.pos, True, 0.00123, 'world', 5, 6, with_padding=True)
     msg = deserialize_message(st, HairState)
     assert (msg.n_strands, msg.vertices_per_strand) == sim.pos.shape[:2]
@@ -148,3 +160,35 @@ def test_head_marker_bytes_deserialize_to_the_display_mesh():
     arr = deserialize_message(head_marker_cdr(v, big_t, 'head', 0, 0), MarkerArray)
     assert len(arr.markers) == 2 and [m.id for m in arr.markers] == [0, 1]
     assert sum(len(m.points) for m in arr.markers) == 3 * len(big_t)
+
+
+def mesh_from_topology(topology, strip_ids):
+    """Return (indices, uvs) of the strips strip_ids as HairMeshTopology's comment says."""
+    nv, nt = topology.verts_per_strip, topology.tris_per_strip
+    tris, uvs = [], []
+    for k, s in enumerate(strip_ids):
+        o = topology.strip_offsets
+        assert o[s + 1] - o[s] == nt
+        tris.append(topology.indices[o[s]:o[s + 1]].astype(np.int64) - (s - k) * nv)
+        uvs.append(topology.uvs[s * nv:(s + 1) * nv])
+    return np.concatenate(tris), np.concatenate(uvs)
+
+
+def test_a_mesh_is_its_topology_and_its_vertices():
+    """Topology (per style) + vertices and strip_ids (per frame) make the mesh, culled too."""
+    sim = moving_sim()
+    renderer = HairRenderer.for_simulator(sim)
+    R, p = sim.head_pose
+    topology = renderer.topology()
+    assert topology is renderer.topology()              # built once per renderer
+    drawn = []
+    for viewpoint in (None, [0.8, 0.0, 0.0], p + R @ [0.8, 0.0, 0.0]):    # from the front
+        mesh = renderer.mesh(sim.pos, R, p, viewpoint)
+        drawn.append(mesh.n_strips)
+        indices, uvs = mesh_from_topology(topology, mesh.strip_ids)
+        np.testing.assert_array_equal(indices, mesh.indices)
+        np.testing.assert_array_equal(uvs, mesh.uvs)
+        assert len(mesh.vertices) == mesh.n_strips * topology.verts_per_strip
+        assert indices.max() < len(mesh.vertices)
+    assert drawn[0] == topology.n_strips and 0 < min(drawn[1:]) < topology.n_strips
+    assert topology.texture_png == mesh.texture_png and topology.texture_id == mesh.texture_id

@@ -201,19 +201,14 @@ def _recentre(C, th, ph, thp, php, cos_th, rest):
 
 
 @njit(cache=True)
-def _moments(C, th, ph, seg_len, fd, fe):
+def _moments_of_trig(C, st, ct, sp, cp, seg_len, fd, fe):
     """
     Eq. 4: the moments of the distributed force fd and the end force fe about the start.
 
     M_theta = u F_theta, M_phi = v F_phi with u = l/2, v = (l/2) sin(theta) for the
-    distributed force; forces at the segment's end act with lever l.
+    distributed force; forces at the segment's end act with lever l. The angles are given
+    by their sines and cosines (the step carries them).
     """
-    return _moments_of_trig(C, sin(th), cos(th), sin(ph), cos(ph), seg_len, fd, fe)
-
-
-@njit(cache=True)
-def _moments_of_trig(C, st, ct, sp, cp, seg_len, fd, fe):
-    """Eq. 4 (see _moments) at the angles whose sines and cosines are given."""
     # unit vectors along increasing theta and phi (fig. 4.3)
     etx = ct * cp * C[0, 0] + ct * sp * C[1, 0] - st * C[2, 0]
     ety = ct * cp * C[0, 1] + ct * sp * C[1, 1] - st * C[2, 1]

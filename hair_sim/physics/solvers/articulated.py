@@ -337,6 +337,18 @@ def _unit_impulse_response(s,
 
 
 @njit(cache=True)
+def _without_relative_spin(w, parent_w, d):
+    """
+    Return angular velocity w less its spin about the rod axis d relative to parent_w.
+
+    The joints are 2-DOF: a rod turns about its parent (or the head) only across its axis.
+    """
+    tw = (w[0] - parent_w[0]) * d[0] + (w[1] - parent_w[1]) * d[1] + \
+        (w[2] - parent_w[2]) * d[2]
+    return w[0] - tw * d[0], w[1] - tw * d[1], w[2] - tw * d[2]
+
+
+@njit(cache=True)
 def _stop_inward_motion(s,
                         contacts,
                         chain,
@@ -405,16 +417,10 @@ def _stop_inward_motion(s,
     for j in range(n_seg):
         seg = length[s, j]
         dx, dy, dz = R[s, j, 0, 2], R[s, j, 1, 2], R[s, j, 2, 2]
-        if j == 0:
-            tw = (omega[s, j, 0] - head.w[0]) * dx + (omega[s, j, 1] - head.w[1]) * dy + \
-                (omega[s, j, 2] - head.w[2]) * dz
-        else:
-            tw = (omega[s, j, 0] - omega[s, j - 1, 0]) * dx + \
-                (omega[s, j, 1] - omega[s, j - 1, 1]) * dy + \
-                (omega[s, j, 2] - omega[s, j - 1, 2]) * dz
-        omega[s, j, 0] -= tw * dx                   # 2-DOF joints (see step_chains)
-        omega[s, j, 1] -= tw * dy
-        omega[s, j, 2] -= tw * dz
+        parent_w = (head.w[0], head.w[1], head.w[2]) if j == 0 else \
+            (omega[s, j - 1, 0], omega[s, j - 1, 1], omega[s, j - 1, 2])
+        omega[s, j, 0], omega[s, j, 1], omega[s, j, 2] = _without_relative_spin(
+            (omega[s, j, 0], omega[s, j, 1], omega[s, j, 2]), parent_w, (dx, dy, dz))
         bx, by, bz = seg * dx, seg * dy, seg * dz
         vx += omega[s, j, 1] * bz - omega[s, j, 2] * by
         vy += omega[s, j, 2] * bx - omega[s, j, 0] * bz
@@ -773,15 +779,10 @@ def step_chains(state,
                 for b in range(3):
                     R[s, i, a, b] = Rnew[a, b]
             # 2-DOF joints: no spin about the rod relative to its parent (it moves no vertex)
-            if i == 0:
-                tw = (wx - head.w[0]) * Rnew[0, 2] + (wy - head.w[1]) * Rnew[1, 2] + \
-                    (wz - head.w[2]) * Rnew[2, 2]
-            else:
-                tw = (wx - omega[s, i - 1, 0]) * Rnew[0, 2] + \
-                    (wy - omega[s, i - 1, 1]) * Rnew[1, 2] + (wz - omega[s, i - 1, 2]) * Rnew[2, 2]
-            wx -= tw * Rnew[0, 2]
-            wy -= tw * Rnew[1, 2]
-            wz -= tw * Rnew[2, 2]
+            parent_w = (head.w[0], head.w[1], head.w[2]) if i == 0 else \
+                (omega[s, i - 1, 0], omega[s, i - 1, 1], omega[s, i - 1, 2])
+            wx, wy, wz = _without_relative_spin((wx, wy, wz), parent_w,
+                                                (Rnew[0, 2], Rnew[1, 2], Rnew[2, 2]))
             omega[s, i, 0], omega[s, i, 1], omega[s, i, 2] = wx, wy, wz
             alpha_prev[s, i, 0], alpha_prev[s, i, 1], alpha_prev[s, i, 2] = \
                 alpha[i, 0], alpha[i, 1], alpha[i, 2]
