@@ -1,44 +1,160 @@
 """
 Visibility culling: strips that cannot be seen from a viewpoint are not drawn (thesis 3.3).
 
-A strip is skipped only when all of it, its vertices and its U-shape walls, lies in the
-shadow of the head's spheres (so it faces away too). The ball test is
-exact: a ball B is shadowed by sphere S when it lies inside the cone of rays from the eye
-that touch S and no nearer to the eye than the tangent length sqrt(|ES|^2 - r^2) (any ray
-in that cone has entered S by then). Strips are covered by balls around their simulated
-vertices and along their walls, with radii that leave room for the refinement between
-them; the test suite checks against a ray caster that no culled strip is hit by any ray.
+A strip is skipped only when all of it, its face, its U-shape walls and the refinement
+between its simulated vertices, lies in the shadow of the head's spheres (so it faces away
+too). The shadow used is a convex part of the true one: the rays from the eye that touch
+sphere S form a cone; every point of that cone beyond the plane of the circle where the
+cone touches S has passed through S (the near cap of S lies in front of that plane). A
+cone (half-angle < 90 deg) cut by a half-space is convex, so a set whose corners lie in it
+lies in it whole: a bilinear patch is hidden when its four corners, each grown into a
+ball, are in the shadow of one sphere. No trigonometry: each sphere's cone is kept as its
+axis and the sine and cosine of its half-angle.
+
+A strip with a simulated vertex in plain view is visible at once (most visible strips
+stop there, after a few dot products). For the others the wall bottoms are worked out
+(the projections of the simulated vertices), and the strip is hidden when one sphere's
+shadow holds every vertex and bottom; otherwise each patch (the face between the two
+edges, and each edge with its wall, between two rows) must be, split at most MAX_SPLITS
+times. Anything left over is drawn. The test suite checks against a ray caster that no
+culled strip is hit by any ray.
 """
 
-from math import asin, sqrt
+from math import sqrt
 
 from numba import njit
 import numpy as np
 
 from hair_sim.render.ushape import strip_wall_bottoms
 
+MARGIN = 1e-4             # m: every corner ball grows by this much
+MAX_SPLITS = 3            # a patch no one shadow holds is split in four, this deep at most
+SPLIT_ROWS = 3 * MAX_SPLITS + 2      # the most pieces waiting at once, and a scratch row
+
 
 @njit(cache=True)
-def _ball_hidden_by(bx, by, bz, rho, eye, occ, k):
-    """Return True if the ball (b, rho) is in the shadow of occluding sphere k."""
-    dx, dy, dz = bx - eye[0], by - eye[1], bz - eye[2]
-    db = sqrt(dx * dx + dy * dy + dz * dz)
-    cx, cy, cz = occ[k, 0] - eye[0], occ[k, 1] - eye[1], occ[k, 2] - eye[2]
-    dc = sqrt(cx * cx + cy * cy + cz * cz)
-    r = occ[k, 3]
-    if db <= rho or dc <= r or db - rho < sqrt(dc * dc - r * r):
+def shadow_cones(eye, occ):
+    """
+    Return per occluding sphere (axis x, y, z, sin, cos of the half-angle, plane depth).
+
+    The plane depth is the distance along the axis from the eye to the circle where the
+    cone touches the sphere: t cos(alpha) = t^2 / |ES|, t the tangent length. A sphere
+    around the eye (or of no size) hides nothing: its sine is set to -1.
+    """
+    n = occ.shape[0]
+    out = np.zeros((n, 6))
+    for k in range(n):
+        cx, cy, cz = occ[k, 0] - eye[0], occ[k, 1] - eye[1], occ[k, 2] - eye[2]
+        dc = sqrt(cx * cx + cy * cy + cz * cz)
+        r = occ[k, 3]
+        if dc <= r or r <= 0.0:
+            out[k, 3] = -1.0
+            continue
+        t = sqrt(dc * dc - r * r)
+        out[k, 0], out[k, 1], out[k, 2] = cx / dc, cy / dc, cz / dc
+        out[k, 3], out[k, 4], out[k, 5] = r / dc, t / dc, t * t / dc
+    return out
+
+
+@njit(cache=True)
+def ball_in_shadow(x, y, z, rho, eye, cones, k):
+    """Return True if the ball (x, y, z; rho) lies in the shadow of sphere k (convex part)."""
+    sa = cones[k, 3]
+    if sa < 0.0:
         return False
-    cosang = min(1.0, max(-1.0, (dx * cx + dy * cy + dz * cz) / (db * dc)))
-    return np.arccos(cosang) + asin(min(1.0, rho / db)) <= asin(r / dc)
+    dx, dy, dz = x - eye[0], y - eye[1], z - eye[2]
+    along = dx * cones[k, 0] + dy * cones[k, 1] + dz * cones[k, 2]
+    if along - rho < cones[k, 5]:                  # not wholly beyond the tangent circle
+        return False
+    db = sqrt(dx * dx + dy * dy + dz * dz)
+    sb = rho / db                                  # sine of the ball's angular radius
+    if sb > sa:
+        return False
+    # the ball's direction within alpha - beta of the axis: cos(gamma) >= cos(alpha - beta)
+    return along >= db * (cones[k, 4] * sqrt(1.0 - sb * sb) + sa * sb)
 
 
 @njit(cache=True)
-def _ball_hidden(bx, by, bz, rho, eye, occ):
-    """Return True if some occluding sphere shadows the ball (b, rho)."""
-    for k in range(occ.shape[0]):
-        if _ball_hidden_by(bx, by, bz, rho, eye, occ, k):
+def _point_hidden(x, y, z, eye, cones, hint):
+    n = cones.shape[0]
+    for i in range(n):
+        k = hint[0] + i
+        if k >= n:
+            k -= n
+        if ball_in_shadow(x, y, z, 0.0, eye, cones, k):
+            hint[0] = k
             return True
     return False
+
+
+@njit(cache=True)
+def _held(work, row, rho, eye, cones, hint):
+    """Return True if one sphere's shadow holds the 4 corners work[row, :12] (x, y, z)."""
+    n = cones.shape[0]
+    for i in range(n):
+        k = hint[0] + i
+        if k >= n:
+            k -= n
+        held = True
+        for c in range(4):
+            if not ball_in_shadow(work[row, 3 * c], work[row, 3 * c + 1],
+                                  work[row, 3 * c + 2], rho, eye, cones, k):
+                held = False
+                break
+        if held:
+            hint[0] = k
+            return True
+    return False
+
+
+@njit(cache=True)
+def quad_in_shadow(work, rho, eye, cones, hint):
+    """
+    Return True if the bilinear patch of corners work[0, :12], grown by rho, is hidden.
+
+    The corners are p00, p01, p10, p11 (x, y, z each). Hidden when one sphere's shadow
+    holds the four corners (the patch lies in their hull); otherwise it is split in four
+    (a piece of a bilinear patch is the bilinear patch of its corners), at most MAX_SPLITS
+    deep. The spheres are tried from hint[0] on, the one that
+    held the last piece; hint is updated. work (SPLIT_ROWS, 13) is the stack of pieces
+    (corners and depth), its last row scratch.
+    """
+    if _held(work, 0, rho, eye, cones, hint):
+        return True
+    if MAX_SPLITS == 0:
+        return False
+    last = SPLIT_ROWS - 1                        # the parent piece's row
+    work[0, 12] = 0.0
+    top = 1
+    while top > 0:
+        top -= 1
+        for i in range(13):                      # copied: pieces are pushed into its row
+            work[last, i] = work[top, i]
+        for half in range(4):                    # the four (t, f) halves of the patch
+            for c in range(4):
+                t = 0.5 * ((half // 2) + (1 if c >= 2 else 0))
+                f = 0.5 * ((half % 2) + (c % 2))
+                for d in range(3):
+                    work[top, 3 * c + d] = \
+                        (1 - t) * ((1 - f) * work[last, d] + f * work[last, 3 + d]) + \
+                        t * ((1 - f) * work[last, 6 + d] + f * work[last, 9 + d])
+            if _held(work, top, rho, eye, cones, hint):
+                continue
+            if work[last, 12] + 1.0 >= MAX_SPLITS:
+                return False
+            work[top, 12] = work[last, 12] + 1.0
+            top += 1
+    return True
+
+
+@njit(cache=True)
+def _set_quad(work, P, s0, Q, s1, j):
+    """work[0, :12] = P[s0, j], Q[s1, j], P[s0, j + 1], Q[s1, j + 1] (no array views)."""
+    for d in range(3):
+        work[0, d] = P[s0, j, d]
+        work[0, 3 + d] = Q[s1, j, d]
+        work[0, 6 + d] = P[s0, j + 1, d]
+        work[0, 9 + d] = Q[s1, j + 1, d]
 
 
 @njit(cache=True)
@@ -54,45 +170,39 @@ def _deviation(pos, st, j):
 
 
 @njit(cache=True)
-def _patch_hidden(p0, p1, q0, q1, dev, eye, occ, leaf):
-    """
-    Return True if a bilinear patch thickened by dev is in the shadow of the spheres.
-
-    The patch spans an edge p0 -> p1 and its wall bottoms q0 -> q1. A sub-patch lies in
-    the hull of its corners, so its corners' bounding ball (+ dev) shadowed by one sphere
-    settles it; otherwise it is split in four, down to `leaf` size, where an unshadowed
-    ball means visible.
-    """
-    stack = np.empty((64, 4))
-    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = 0.0, 1.0, 0.0, 1.0
-    top = 1
-    corners = np.empty((4, 3))
-    while top > 0:
-        top -= 1
-        t0, t1, f0, f1 = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
-        for c in range(4):
-            t = t0 if c < 2 else t1
-            f = f0 if c % 2 == 0 else f1
-            for d in range(3):
-                e = (1 - t) * p0[d] + t * p1[d]
-                w = (1 - t) * q0[d] + t * q1[d]
-                corners[c, d] = (1 - f) * e + f * w
-        mx = 0.25 * (corners[0, 0] + corners[1, 0] + corners[2, 0] + corners[3, 0])
-        my = 0.25 * (corners[0, 1] + corners[1, 1] + corners[2, 1] + corners[3, 1])
-        mz = 0.25 * (corners[0, 2] + corners[1, 2] + corners[2, 2] + corners[3, 2])
-        rho = 0.0
-        for c in range(4):
-            rho = max(rho, sqrt((corners[c, 0] - mx) ** 2 + (corners[c, 1] - my) ** 2
-                                + (corners[c, 2] - mz) ** 2))
-        if _ball_hidden(mx, my, mz, rho + dev + 1e-4, eye, occ):
-            continue
-        if rho < leaf or top > 59:
+def _strip_hidden(pos, a, b, bottoms, grow, eye, cones, hint, work):
+    """Return True if strip (strands a, b; wall bottoms; corner growth) is in shadow."""
+    V = pos.shape[1]
+    n = cones.shape[0]
+    for i in range(n):                           # one sphere's shadow holds all of it
+        k = hint[0] + i
+        if k >= n:
+            k -= n
+        held = True
+        for q in range(2):
+            st = a if q == 0 else b
+            for j in range(V):
+                if not (ball_in_shadow(pos[st, j, 0], pos[st, j, 1], pos[st, j, 2],
+                                       grow[q, j], eye, cones, k)
+                        and ball_in_shadow(bottoms[st, j, 0], bottoms[st, j, 1],
+                                           bottoms[st, j, 2], grow[q, j], eye, cones, k)):
+                    held = False
+                    break
+            if not held:
+                break
+        if held:
+            hint[0] = k
+            return True
+    for j in range(V - 1):                       # else patch by patch
+        rho = max(grow[0, j], grow[0, j + 1], grow[1, j], grow[1, j + 1])
+        _set_quad(work, pos, a, pos, b, j)       # the face between the edges
+        if not quad_in_shadow(work, rho, eye, cones, hint):
             return False
-        tm, fm = 0.5 * (t0 + t1), 0.5 * (f0 + f1)
-        for (a0, a1, b0, b1) in ((t0, tm, f0, fm), (tm, t1, f0, fm), (t0, tm, fm, f1),
-                                 (tm, t1, fm, f1)):
-            stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = a0, a1, b0, b1
-            top += 1
+        for q in range(2):                       # each edge with its wall
+            st = a if q == 0 else b
+            _set_quad(work, pos, st, bottoms, st, j)
+            if not quad_in_shadow(work, max(grow[q, j], grow[q, j + 1]), eye, cones, hint):
+                return False
     return True
 
 
@@ -103,7 +213,6 @@ def visible_strips(pos,
                    projection,
                    eye,
                    occ,
-                   leaf,
                    bottoms,
                    out):
     """
@@ -112,29 +221,39 @@ def visible_strips(pos,
     The drawn edge of a strip is an Oslo refinement of its simulated edge polygon and lies
     within |second difference| / 6 of it (refined control polygons of a cubic B-spline
     stay between the control polygon and the curve); its wall runs down to bottoms close
-    to those of the simulated vertices. Each edge segment with its wall is a bilinear patch
-    thickened by that deviation; a strip is culled when every patch is in the shadow of
-    the spheres (only strips facing away can be). A strip with a simulated vertex in plain
-    view is visible at once; the wall bottoms (scratch array `bottoms`) and the patches are
-    worked out only for the others. Returns the number of visible strips.
+    to those of the simulated vertices. Every corner ball is grown by the largest such
+    deviation around it and MARGIN. The wall bottoms (scratch array `bottoms`) are worked
+    out only for strips without a simulated vertex in plain view. Returns the number of
+    visible strips.
     """
+    cones = shadow_cones(eye, occ)
     n_strips = strip_strands.shape[0]
     V = pos.shape[1]
+    grow = np.empty((2, V))
+    hint = np.zeros(1, np.int64)                 # the sphere that held the last piece
+    work = np.empty((SPLIT_ROWS, 13))           # quad_in_shadow's pieces
     count = 0
     for s in range(n_strips):
         a, b = strip_strands[s, 0], strip_strands[s, 1]
-        # cheap and exact first: a simulated vertex in plain view makes the strip visible
         vis = False
-        for q in range(2):
+        for q in range(2):                       # cheap and exact first
             st = a if q == 0 else b
             for j in range(V):
-                if not _ball_hidden(pos[st, j, 0], pos[st, j, 1], pos[st, j, 2], 0.0, eye,
-                                    occ):
+                if not _point_hidden(pos[st, j, 0], pos[st, j, 1], pos[st, j, 2], eye,
+                                     cones, hint):
                     vis = True
                     break
             if vis:
                 break
         if not vis:
+            for q in range(2):                   # the largest deviation around each vertex
+                st = a if q == 0 else b
+                prev = 0.0
+                here = _deviation(pos, st, 0)
+                for j in range(V):
+                    after = _deviation(pos, st, j + 1) if j + 1 < V else 0.0
+                    grow[q, j] = max(prev, here, after) / 6.0 + MARGIN
+                    prev, here = here, after
             strip_wall_bottoms(
                 pos,
                 strip_strands,
@@ -143,16 +262,7 @@ def visible_strips(pos,
                 projection,
                 bottoms,
             )
-        for q in range(2):
-            if vis:
-                break
-            st = a if q == 0 else b
-            for j in range(V - 1):
-                dev = max(_deviation(pos, st, j), _deviation(pos, st, j + 1)) / 6.0
-                if not _patch_hidden(pos[st, j], pos[st, j + 1], bottoms[st, j],
-                                     bottoms[st, j + 1], dev, eye, occ, leaf):
-                    vis = True
-                    break
+            vis = not _strip_hidden(pos, a, b, bottoms, grow, eye, cones, hint, work)
         out[s] = 1 if vis else 0
         if vis:
             count += 1

@@ -11,7 +11,6 @@ from hair_sim.render.texture import texture_png
 DELTA = 5e-4            # m: bisection threshold of thesis 3.2
 MAX_DISTANCE = 0.04     # m: a projection farther than this from its vertex is "too far"
 FIX_LENGTH = 0.006      # m: C, the length of a fixed-up projection AA' (fig. 3.4 B, D)
-CULL_LEAF = 0.002       # m: smallest piece the culler splits a strip's edge and wall into
 
 
 @dataclass
@@ -151,9 +150,9 @@ class HairRenderer:
                                        fix_len=self.fix_length)
         return projection, np.ascontiguousarray(occ)
 
-    def visible(self, pos, R, p, viewpoint):
+    def visible(self, pos, R, p, viewpoint, world=None):
         """Return the indices of the strips that may be seen from `viewpoint` (world)."""
-        projection, occ = self._world(R, p)
+        projection, occ = self._world(R, p) if world is None else world
         culling.visible_strips(
             pos,
             self.strip_strands,
@@ -161,7 +160,6 @@ class HairRenderer:
             projection,
             np.asarray(viewpoint, dtype=np.float64),
             occ,
-            CULL_LEAF,
             self._bottoms,
             self._vis,
         )
@@ -173,9 +171,10 @@ class HairRenderer:
 
         walls=False leaves out the two projected meshes: plain strips (thesis fig. 3.8a).
         """
-        strips = self._all if viewpoint is None else self.visible(pos, R, p, viewpoint)
+        world = self._world(R, p)
+        projection = world[0]
+        strips = self._all if viewpoint is None else self.visible(pos, R, p, viewpoint, world)
         k = len(strips)
-        projection, _ = self._world(R, p)
         grid = self._grid[:k]
         out = self._out[:k]
         flags = self._flags[:k]

@@ -50,11 +50,19 @@ def test_scale_quick(tmp_path):
 
 
 def test_skip_quick(tmp_path):
-    """One record per feature and style, with the cost of the work and of skipping it."""
+    """One record per feature and style (culling: every shipped style), work and skip costs."""
+    import os
+    from hair_sim import paths
     rc, records = bench('skip', tmp_path)
     assert rc == 0
     features = {r['feature'] for r in records}
-    assert len(features) == 5 and len({r['style'] for r in records}) == 2
+    assert len(features) == 5
+    culling = [r for r in records if r['feature'].startswith('culling')]
+    shipped = {f[:-5] for f in os.listdir(paths.hairstyles_dir()) if f.endswith('.yaml')}
+    assert {r['style'].split(' ')[0] for r in culling} == shipped | {'thesis_long_200'}
+    assert all(0 < r['strips_drawn'] < int(r['style'].split('(')[1].split(' ')[0])
+               for r in culling)                             # from the front, some are hidden
+    assert len({r['style'] for r in records if r not in culling}) == 2
     assert all(r['work_ms'] > 0 and r['skipped_ms'] > 0 for r in records)
 
 

@@ -1,6 +1,7 @@
 """Coverage of the scalp by the U-shape (64 viewpoints) and conservative visibility culling."""
 
 import numpy as np
+import pytest
 
 from hair_sim.render import HairRenderer
 from hair_sim.render.coverage import coverage, hair_region_samples
@@ -49,3 +50,41 @@ def test_front_view_skips_a_third(settled, renderer):
     back = renderer.mesh_of(settled, viewpoint=[-0.8, 0.0, 0.0])
     assert back.n_strips > n - n / 3                                  # back: most drawn
     assert hair_region_samples(settled.head).shape[0] > 1000
+
+
+def _ray_blocked(eye, point, sphere):
+    """Return True if the segment eye -> point passes through the sphere (centre, r)."""
+    c, r = sphere[:3], sphere[3]
+    d = point - eye
+    length = np.linalg.norm(d)
+    u = d / length
+    m = eye - c
+    b = m @ u
+    disc = b * b - (m @ m - r * r)
+    if disc < 0.0:
+        return False
+    entry = -b - np.sqrt(disc)
+    return 0.0 <= entry <= length
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_a_ball_called_shadowed_is_hidden_from_every_ray(seed):
+    """Balls culling calls shadowed: sampled points in them are all behind the sphere."""
+    from hair_sim.render.culling import ball_in_shadow, shadow_cones
+    rng = np.random.default_rng(seed)
+    eye = rng.normal(size=3) * 0.5
+    sphere = np.array([0.0, 0.0, 0.0, 0.1])
+    cones = shadow_cones(eye, sphere[None, :])
+    shadowed = 0
+    for _ in range(3000):
+        # balls around the sphere and behind it, of 0 to 3 cm
+        centre = rng.normal(size=3) * 0.08 - eye * rng.uniform(0.0, 0.8)
+        rho = rng.uniform(0.0, 0.03)
+        if not ball_in_shadow(centre[0], centre[1], centre[2], rho, eye, cones, 0):
+            continue
+        shadowed += 1
+        for _ in range(8):                     # points on and in the ball
+            v = rng.normal(size=3)
+            point = centre + rho * rng.uniform(0.5, 1.0) * v / np.linalg.norm(v)
+            assert _ray_blocked(eye, point, sphere), (eye, centre, rho, point)
+    assert shadowed > 100                      # the test saw shadowed balls
