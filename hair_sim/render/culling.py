@@ -170,8 +170,9 @@ def _deviation(pos, st, j):
 
 
 @njit(cache=True)
-def _strip_hidden(pos, a, b, bottoms, grow, eye, cones, hint, work):
-    """Return True if strip (strands a, b; wall bottoms; corner growth) is in shadow."""
+def _strip_hidden(pos, strands, bottoms, grow, eye, cones, hint, work):
+    """Return True if a strip (its two strands; wall bottoms; corner growth) is in shadow."""
+    a, b = strands
     V = pos.shape[1]
     n = cones.shape[0]
     for i in range(n):                           # one sphere's shadow holds all of it
@@ -262,7 +263,7 @@ def visible_strips(pos,
                 projection,
                 bottoms,
             )
-            vis = not _strip_hidden(pos, a, b, bottoms, grow, eye, cones, hint, work)
+            vis = not _strip_hidden(pos, (a, b), bottoms, grow, eye, cones, hint, work)
         out[s] = 1 if vis else 0
         if vis:
             count += 1
