@@ -223,16 +223,17 @@ def main():
               'switching off the inter-strip springs or the wind save what they compute. '
               'Culling from the front skips the hidden strips (about a third of the sample '
               'style; the same strips on every shipped style as the earlier ball-and-leaf '
-              'test), but proving a strip hidden needs its wall bottoms, the '
-              'same projections onto the scalp the U-shape makes, so the culled mesh costs '
-              'more CPU than the whole one on all but thesis_short; what it saves is '
-              'downstream: triangles sent to meshcat and drawn. The test itself (the '
-              'trigonometry-free convex shadow of each sphere, a strip at once when one '
-              'shadow holds all of it, else patch by patch, the face between the edges '
-              'included) costs %.3f ms on thesis_long, about 1.5x less than the ball-and-'
-              'leaf test it replaced. (This table was measured on 2026-11-23 on a host about '
-              '30 %% slower than the scale table\'s: `hair_sim_bench scale --quick` gave 233 '
-              'fps at 180 strips there.)' % culling_test_ms, '']
+              'test). Proving a strip hidden needs its wall bottoms, the same projections '
+              'onto the scalp the U-shape makes, so the culled mesh, test included, costs '
+              'about what the whole one does: 20 %% less on thesis_short, within +-2 %% on '
+              'thesis_long and bob_fringe, 3-4 %% more on side_swept_long (3 runs); what it '
+              'always saves is downstream: triangles sent to meshcat and drawn. The test '
+              '(the trigonometry-free convex shadow of each sphere; a strip at once when one '
+              'shadow holds all of it, else two rows at a time, else patch by patch, the '
+              'face between the edges included) costs %.3f ms on thesis_long, about 3x less '
+              'than the ball-and-leaf test it replaced. (Measured on 2026-11-23 on a host '
+              'about 30 %% slower than the scale table\'s: `hair_sim_bench scale --quick` '
+              'gave 233 fps at 180 strips there.)' % culling_test_ms, '']
     cases = stress['cases']
     parts += ['## Numerical stability under abuse (`hair_sim_bench stress --json`)', '',
               'Promised: the solver\'s own stability check accepts the parameters at that '

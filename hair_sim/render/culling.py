@@ -75,24 +75,11 @@ def ball_in_shadow(x, y, z, rho, eye, cones, k):
 
 
 @njit(cache=True)
-def _point_hidden(x, y, z, eye, cones, hint):
+def _held(work, row, rho, eye, cones, first):
+    """Return the sphere whose shadow holds the 4 corners work[row, :12], or -1."""
     n = cones.shape[0]
     for i in range(n):
-        k = hint[0] + i
-        if k >= n:
-            k -= n
-        if ball_in_shadow(x, y, z, 0.0, eye, cones, k):
-            hint[0] = k
-            return True
-    return False
-
-
-@njit(cache=True)
-def _held(work, row, rho, eye, cones, hint):
-    """Return True if one sphere's shadow holds the 4 corners work[row, :12] (x, y, z)."""
-    n = cones.shape[0]
-    for i in range(n):
-        k = hint[0] + i
+        k = first + i
         if k >= n:
             k -= n
         held = True
@@ -102,27 +89,26 @@ def _held(work, row, rho, eye, cones, hint):
                 held = False
                 break
         if held:
-            hint[0] = k
-            return True
-    return False
+            return k
+    return -1
 
 
 @njit(cache=True)
-def quad_in_shadow(work, rho, eye, cones, hint):
+def quad_in_shadow(work, rho, eye, cones, first):
     """
-    Return True if the bilinear patch of corners work[0, :12], grown by rho, is hidden.
+    Return a sphere that held the bilinear patch of corners work[0, :12], grown by rho.
 
-    The corners are p00, p01, p10, p11 (x, y, z each). Hidden when one sphere's shadow
-    holds the four corners (the patch lies in their hull); otherwise it is split in four
-    (a piece of a bilinear patch is the bilinear patch of its corners), at most MAX_SPLITS
-    deep. The spheres are tried from hint[0] on, the one that
-    held the last piece; hint is updated. work (SPLIT_ROWS, 13) is the stack of pieces
-    (corners and depth), its last row scratch.
+    The corners are p00, p01, p10, p11 (x, y, z each). The patch is hidden when one
+    sphere's shadow holds the four corners (the patch lies in their hull); otherwise it is
+    split in four (a piece of a bilinear patch is the bilinear patch of its corners), at
+    most MAX_SPLITS deep. Returns -1 if some piece is not held. Spheres are tried from
+    `first` on, then from the one that held the last piece. work (SPLIT_ROWS, 13) is the
+    stack of pieces (corners and depth), its last row scratch.
     """
-    if _held(work, 0, rho, eye, cones, hint):
-        return True
-    if MAX_SPLITS == 0:
-        return False
+    k = _held(work, 0, rho, eye, cones, first)
+    if k >= 0 or MAX_SPLITS == 0:
+        return k
+    k = first
     last = SPLIT_ROWS - 1                        # the parent piece's row
     work[0, 12] = 0.0
     top = 1
@@ -138,13 +124,15 @@ def quad_in_shadow(work, rho, eye, cones, hint):
                     work[top, 3 * c + d] = \
                         (1 - t) * ((1 - f) * work[last, d] + f * work[last, 3 + d]) + \
                         t * ((1 - f) * work[last, 6 + d] + f * work[last, 9 + d])
-            if _held(work, top, rho, eye, cones, hint):
+            held = _held(work, top, rho, eye, cones, k)
+            if held >= 0:
+                k = held
                 continue
             if work[last, 12] + 1.0 >= MAX_SPLITS:
-                return False
+                return -1
             work[top, 12] = work[last, 12] + 1.0
             top += 1
-    return True
+    return k
 
 
 @njit(cache=True)
@@ -158,53 +146,64 @@ def _set_quad(work, P, s0, Q, s1, j):
 
 
 @njit(cache=True)
-def _deviation(pos, st, j):
-    """Return |P[j-1] - 2 P[j] + P[j+1]| of strand st (0 at the ends)."""
-    V = pos.shape[1]
-    if j <= 0 or j >= V - 1:
-        return 0.0
-    dx = pos[st, j - 1, 0] - 2 * pos[st, j, 0] + pos[st, j + 1, 0]
-    dy = pos[st, j - 1, 1] - 2 * pos[st, j, 1] + pos[st, j + 1, 1]
-    dz = pos[st, j - 1, 2] - 2 * pos[st, j, 2] + pos[st, j + 1, 2]
-    return sqrt(dx * dx + dy * dy + dz * dz)
-
-
-@njit(cache=True)
-def _strip_hidden(pos, strands, bottoms, grow, eye, cones, hint, work):
-    """Return True if a strip (its two strands; wall bottoms; corner growth) is in shadow."""
+def _rows_held(pos, strands, bottoms, j0, j1, grow, eye, cones, first):
+    """Return the sphere whose shadow holds rows j0..j1 (edges, wall bottoms), or -1."""
     a, b = strands
-    V = pos.shape[1]
     n = cones.shape[0]
-    for i in range(n):                           # one sphere's shadow holds all of it
-        k = hint[0] + i
+    for i in range(n):
+        k = first + i
         if k >= n:
             k -= n
         held = True
         for q in range(2):
             st = a if q == 0 else b
-            for j in range(V):
-                if not (ball_in_shadow(pos[st, j, 0], pos[st, j, 1], pos[st, j, 2],
-                                       grow[q, j], eye, cones, k)
+            for j in range(j0, j1 + 1):
+                g = grow[q, j]
+                if not (ball_in_shadow(pos[st, j, 0], pos[st, j, 1], pos[st, j, 2], g, eye,
+                                       cones, k)
                         and ball_in_shadow(bottoms[st, j, 0], bottoms[st, j, 1],
-                                           bottoms[st, j, 2], grow[q, j], eye, cones, k)):
+                                           bottoms[st, j, 2], g, eye, cones, k)):
                     held = False
                     break
             if not held:
                 break
         if held:
-            hint[0] = k
-            return True
-    for j in range(V - 1):                       # else patch by patch
+            return k
+    return -1
+
+
+@njit(cache=True)
+def _strip_hidden(pos, strands, bottoms, grow, eye, cones, first, work):
+    """
+    Return a sphere that held the last piece of a hidden strip, or -1 if it may be seen.
+
+    One sphere's shadow may hold the whole strip (vertices and wall bottoms); else each
+    pair of rows; else that pair's three patches (the face between the edges, each edge
+    with its wall), split as quad_in_shadow does. Corner balls grow by grow (2, V).
+    """
+    a, b = strands
+    V = pos.shape[1]
+    k = _rows_held(pos, strands, bottoms, 0, V - 1, grow, eye, cones, first)
+    if k >= 0:
+        return k
+    k = first
+    for j in range(V - 1):
+        held = _rows_held(pos, strands, bottoms, j, j + 1, grow, eye, cones, k)
+        if held >= 0:
+            k = held
+            continue
         rho = max(grow[0, j], grow[0, j + 1], grow[1, j], grow[1, j + 1])
         _set_quad(work, pos, a, pos, b, j)       # the face between the edges
-        if not quad_in_shadow(work, rho, eye, cones, hint):
-            return False
+        k = quad_in_shadow(work, rho, eye, cones, k)
+        if k < 0:
+            return -1
         for q in range(2):                       # each edge with its wall
             st = a if q == 0 else b
             _set_quad(work, pos, st, bottoms, st, j)
-            if not quad_in_shadow(work, max(grow[q, j], grow[q, j + 1]), eye, cones, hint):
-                return False
-    return True
+            k = quad_in_shadow(work, max(grow[q, j], grow[q, j + 1]), eye, cones, k)
+            if k < 0:
+                return -1
+    return k
 
 
 @njit(cache=True)
@@ -217,21 +216,22 @@ def visible_strips(pos,
                    bottoms,
                    out):
     """
-    Write 1 into out[s] for strips that may be seen from eye, 0 for culled ones.
+    Write the strips that may be seen from eye into out[:count], in order; return count.
 
     The drawn edge of a strip is an Oslo refinement of its simulated edge polygon and lies
     within |second difference| / 6 of it (refined control polygons of a cubic B-spline
     stay between the control polygon and the curve); its wall runs down to bottoms close
     to those of the simulated vertices. Every corner ball is grown by the largest such
     deviation around it and MARGIN. The wall bottoms (scratch array `bottoms`) are worked
-    out only for strips without a simulated vertex in plain view. Returns the number of
-    visible strips.
+    out only for strips without a simulated vertex in plain view.
     """
     cones = shadow_cones(eye, occ)
     n_strips = strip_strands.shape[0]
     V = pos.shape[1]
     grow = np.empty((2, V))
-    hint = np.zeros(1, np.int64)                 # the sphere that held the last piece
+    last = 0                                     # the sphere that held the last piece
+    n_occ = cones.shape[0]
+    spans = np.empty((projection.scalp.shape[0], 2))  # the wall bottoms' scratch
     work = np.empty((SPLIT_ROWS, 13))           # quad_in_shadow's pieces
     count = 0
     for s in range(n_strips):
@@ -240,8 +240,17 @@ def visible_strips(pos,
         for q in range(2):                       # cheap and exact first
             st = a if q == 0 else b
             for j in range(V):
-                if not _point_hidden(pos[st, j, 0], pos[st, j, 1], pos[st, j, 2], eye,
-                                     cones, hint):
+                hidden = False
+                for i in range(n_occ):           # from the sphere that held the last
+                    k = last + i
+                    if k >= n_occ:
+                        k -= n_occ
+                    if ball_in_shadow(pos[st, j, 0], pos[st, j, 1], pos[st, j, 2], 0.0, eye,
+                                      cones, k):
+                        hidden = True
+                        last = k
+                        break
+                if not hidden:
                     vis = True
                     break
             if vis:
@@ -249,12 +258,16 @@ def visible_strips(pos,
         if not vis:
             for q in range(2):                   # the largest deviation around each vertex
                 st = a if q == 0 else b
-                prev = 0.0
-                here = _deviation(pos, st, 0)
                 for j in range(V):
-                    after = _deviation(pos, st, j + 1) if j + 1 < V else 0.0
-                    grow[q, j] = max(prev, here, after) / 6.0 + MARGIN
-                    prev, here = here, after
+                    grow[q, j] = MARGIN
+                for j in range(1, V - 1):        # |P[j-1] - 2 P[j] + P[j+1]| / 6
+                    dx = pos[st, j - 1, 0] - 2 * pos[st, j, 0] + pos[st, j + 1, 0]
+                    dy = pos[st, j - 1, 1] - 2 * pos[st, j, 1] + pos[st, j + 1, 1]
+                    dz = pos[st, j - 1, 2] - 2 * pos[st, j, 2] + pos[st, j + 1, 2]
+                    g = sqrt(dx * dx + dy * dy + dz * dz) / 6.0 + MARGIN
+                    for r in range(j - 1, j + 2):
+                        if g > grow[q, r]:
+                            grow[q, r] = g
             strip_wall_bottoms(
                 pos,
                 strip_strands,
@@ -262,9 +275,13 @@ def visible_strips(pos,
                 sigma[s],
                 projection,
                 bottoms,
+                spans,
             )
-            vis = not _strip_hidden(pos, (a, b), bottoms, grow, eye, cones, hint, work)
-        out[s] = 1 if vis else 0
+            k = _strip_hidden(pos, (a, b), bottoms, grow, eye, cones, last, work)
+            vis = k < 0
+            if not vis:
+                last = k
         if vis:
+            out[count] = s
             count += 1
     return count

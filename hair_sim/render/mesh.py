@@ -2,6 +2,7 @@
 
 from dataclasses import dataclass
 
+from numba import njit
 import numpy as np
 
 from hair_sim.render import culling, ushape
@@ -63,6 +64,25 @@ class MeshTopology:
     strip_offsets: np.ndarray
     texture_id: str
     texture_png: bytes
+
+
+@njit(cache=True)
+def culled_triangles(local, strips, verts_per_strip):
+    """
+    Return the triangles (k * tris_per_strip, 3) of a mesh of the listed strips only.
+
+    local (n_strips, tris_per_strip, 3) holds each strip's triangles numbered from 0; the
+    i-th listed strip's vertices start at i * verts_per_strip.
+    """
+    nt = local.shape[1]
+    out = np.empty((strips.shape[0] * nt, 3), dtype=np.uint32)
+    for i in range(strips.shape[0]):
+        s = strips[i]
+        base = i * verts_per_strip
+        for t in range(nt):
+            for c in range(3):
+                out[i * nt + t, c] = local[s, t, c] + base
+    return out
 
 
 class HairRenderer:
@@ -153,7 +173,7 @@ class HairRenderer:
     def visible(self, pos, R, p, viewpoint, world=None):
         """Return the indices of the strips that may be seen from `viewpoint` (world)."""
         projection, occ = self._world(R, p) if world is None else world
-        culling.visible_strips(
+        count = culling.visible_strips(
             pos,
             self.strip_strands,
             self.sigma,
@@ -163,7 +183,7 @@ class HairRenderer:
             self._bottoms,
             self._vis,
         )
-        return np.flatnonzero(self._vis)
+        return self._vis[:count].copy()
 
     def mesh(self, pos, R, p, viewpoint=None, frame_id='world', walls=True):
         """
@@ -194,7 +214,7 @@ class HairRenderer:
             topology = self.topology()
             indices, uvs, offsets = topology.indices, topology.uvs, topology.strip_offsets
         else:
-            indices = (self._local[sel] + self._base[:k]).reshape(-1, 3)
+            indices = culled_triangles(self._local, sel, nv)
             uvs = self._uvs_all[:k * nv]
             offsets = self._offsets_all[:k + 1]
         self.last_f64 = out                 # float64 U-shape vertices of this frame (k, nv, 3)

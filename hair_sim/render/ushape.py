@@ -252,27 +252,31 @@ def strip_wall_bottoms(pos,
                        s,
                        sigma_s,
                        projection,
-                       out):
-    """Write where the U-shape walls below strip s's simulated vertices end (fix-ups too)."""
+                       out,
+                       spans):
+    """
+    Write where the U-shape walls below strip s's simulated vertices end (fix-ups too).
+
+    spans (n_scalp, 2) is project_to_scalp's scratch.
+    """
     scalp, centre, rs, delta = (projection.scalp, projection.centre, projection.rs,
                                 projection.delta)
     max_dist, fix_len = projection.max_dist, projection.fix_len
     V = pos.shape[1]
-    spans = np.empty((scalp.shape[0], 2))
     l0, l1 = strip_strands[s, 0], strip_strands[s, 1]
-    for side in range(2):
-        a = strip_strands[s, side]
-        b = strip_strands[s, 1 - side]
-        for j in range(V):
+    for j in range(V):
+        # the strip normal AB x AC with A the left edge, as ushape() takes it; one a row
+        j0, j1 = max(j - 1, 0), min(j + 1, V - 1)
+        nx, ny, nz = strip_normal(pos[l0, j], pos[l1, j], pos[l0, j0], pos[l1, j0],
+                                  pos[l0, j1], pos[l1, j1])
+        nx, ny, nz = sigma_s * nx, sigma_s * ny, sigma_s * nz
+        for side in range(2):
+            a = l0 if side == 0 else l1
+            b = l1 if side == 0 else l0
             ax, ay, az = pos[a, j, 0], pos[a, j, 1], pos[a, j, 2]
             tx, ty, tz = tangent_point(ax, ay, az, pos[b, j, 0], pos[b, j, 1], pos[b, j, 2],
                                        centre, rs)
             px, py, pz = project_to_scalp((ax, ay, az), (tx, ty, tz), scalp, delta, spans)
-            # the strip normal AB x AC with A the left edge, as ushape() takes it
-            j0, j1 = max(j - 1, 0), min(j + 1, V - 1)
-            nx, ny, nz = strip_normal(pos[l0, j], pos[l1, j], pos[l0, j0], pos[l1, j0],
-                                      pos[l0, j1], pos[l1, j1])
-            nx, ny, nz = sigma_s * nx, sigma_s * ny, sigma_s * nz
             vx, vy, vz = px - ax, py - ay, pz - az
             if vx * vx + vy * vy + vz * vz > max_dist * max_dist or \
                     vx * nx + vy * ny + vz * nz < 0.0:
