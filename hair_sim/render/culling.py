@@ -14,10 +14,11 @@ axis and the sine and cosine of its half-angle.
 A strip with a simulated vertex in plain view is visible at once (most visible strips
 stop there, after a few dot products). For the others the wall bottoms are worked out
 (the projections of the simulated vertices), and the strip is hidden when one sphere's
-shadow holds every vertex and bottom; otherwise each patch (the face between the two
-edges, and each edge with its wall, between two rows) must be, split at most MAX_SPLITS
-times. Anything left over is drawn. The test suite checks against a ray caster that no
-culled strip is hit by any ray.
+shadow holds every vertex and bottom; otherwise every two consecutive rows must be held by
+one shadow, or else their three patches (the face between the two edges, and each edge
+with its wall), each split at most MAX_SPLITS times. Anything left over is drawn. The
+spheres are tried from the one that held the last piece. The test suite checks against a
+ray caster that no culled strip is hit by any ray.
 """
 
 from math import sqrt
