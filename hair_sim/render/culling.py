@@ -76,13 +76,18 @@ def ball_in_shadow(x, y, z, rho, eye, cones, k):
 
 
 @njit(cache=True)
+def _nth_sphere(first, i, n):
+    """Return the i-th of n spheres counted on from `first` (wrapping round)."""
+    k = first + i
+    return k - n if k >= n else k
+
+
+@njit(cache=True)
 def _held(work, row, rho, eye, cones, first):
     """Return the sphere whose shadow holds the 4 corners work[row, :12], or -1."""
     n = cones.shape[0]
     for i in range(n):
-        k = first + i
-        if k >= n:
-            k -= n
+        k = _nth_sphere(first, i, n)
         held = True
         for c in range(4):
             if not ball_in_shadow(work[row, 3 * c], work[row, 3 * c + 1],
@@ -152,9 +157,7 @@ def _rows_held(pos, strands, bottoms, j0, j1, grow, eye, cones, first):
     a, b = strands
     n = cones.shape[0]
     for i in range(n):
-        k = first + i
-        if k >= n:
-            k -= n
+        k = _nth_sphere(first, i, n)
         held = True
         for q in range(2):
             st = a if q == 0 else b
@@ -243,9 +246,7 @@ def visible_strips(pos,
             for j in range(V):
                 hidden = False
                 for i in range(n_occ):           # from the sphere that held the last
-                    k = last + i
-                    if k >= n_occ:
-                        k -= n_occ
+                    k = _nth_sphere(last, i, n_occ)
                     if ball_in_shadow(pos[st, j, 0], pos[st, j, 1], pos[st, j, 2], 0.0, eye,
                                       cones, k):
                         hidden = True

@@ -121,7 +121,7 @@ class HairRenderer:
         self._grid = np.zeros((self.n_strips, self.lod.columns, self.lod.rows, 3))
         self._out = np.zeros((self.n_strips, self.lod.verts_per_strip, 3))
         self._flags = np.zeros((self.n_strips, 2, self.lod.rows), dtype=np.int64)
-        self._vis = np.zeros(self.n_strips, dtype=np.int64)
+        self._vis = np.zeros(self.n_strips, dtype=np.int64)   # visible strips, culling writes
         self._bottoms = np.zeros_like(rest)
         self._last_key = None
         self._last = None
