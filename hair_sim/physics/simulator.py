@@ -644,7 +644,9 @@ class HairSimulator:
         out = dict(self.counters)
         out.update({'pose_' + k: v for k, v in self.motion.counts.items()})
         # articulated: the share of joints made stiffer than the material to hold the style
+        # (MAX_PRELOAD) or to keep it stable, and of strands stiffened for stability
         out['stiffened_joints'] = round(getattr(self.solver, 'stiffened', 0.0), 4)
+        out['stabilized_strands'] = round(getattr(self.solver, 'stabilized', 0.0), 4)
         return out
 
 

@@ -7,10 +7,11 @@ radius), joined to its parent (the head, for the first) by a ball joint at its s
 bending spring k = EI / l acts on the *relative* rotation between neighbouring segments,
 the discrete curvature of the Hencky bar-chain: the torque on the child is -k R e, with
 R_child = R_parent R_rest Exp(e); `root_stiffness_scale` multiplies the first joint's k
-(the follicle). Joints have damping d = damping * m l^2 / 3 on their relative angular
-velocity. Twist: the joints are 2-DOF, no spin about a rod relative to its parent
-(`_lock_twist` in the articulated-body pass, the relative spin removed from the angular
-velocities, which moves no vertex). Nothing external twists a rod of zero width, and a
+(the follicle). Joints have damping on their relative angular velocity, d = damping times
+the inertia about the joint of everything beyond it at the modeled pose
+(`inertia_beyond`). Twist: the joints are 2-DOF, no spin about a rod relative to its
+parent (`_lock_twist` in the articulated-body pass, the relative spin removed from the
+angular velocities, which moves no vertex). Nothing external twists a rod of zero width, and a
 thin rod's twist inertia is tiny: with 3-DOF joints (a twist spring, as MuJoCo's ball
 joints have), a joint holding a preload deflection e couples swing into twist through its
 spring's tangent (skew part k [e]x / 2), and that light, stiff twist was flung at
@@ -61,6 +62,10 @@ Rest shape (sag-free): one recursive Newton-Euler pass at the modeled pose (head
 at rest, full distal loads; Hsu et al. 2023, Derouet-Jourdan et al. 2013) gives each
 joint the torque that holds everything beyond it; the joint's spring gets an offset e0
 that supplies exactly that, torque -k R (e - e0), and the modeled style is the equilibrium.
+An equilibrium need not be stable: a strand that stands up against gravity falls off it
+at the first touch unless its springs beat gravity's negative stiffness there, so each
+strand's joints are stiffened until the pose's Hessian (springs plus `gravity_stiffness`)
+is positive definite with STABILITY_MARGIN (`stiffness_to_hold`).
 """
 
 from collections import namedtuple
@@ -89,6 +94,9 @@ MAX_SUBSTEPS = 256
 # the joint is stiffened: measured, offsets past ~1 rad (up to 7.9 on the long styles,
 # past pi the log coordinates wrap) made the hair boil under calm head motion
 MAX_PRELOAD = 1.0
+# a style's pose must be stable, not only an equilibrium: each strand's joint stiffness is
+# at least this many times what gravity's negative stiffness at that pose needs
+STABILITY_MARGIN = 1.5
 
 ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', 'd',
                                        'inertia_axial',
@@ -884,6 +892,89 @@ def sag_free_offsets(frames, length, mass, k, gravity):
     return e0
 
 
+def inertia_beyond(frames, length, mass):
+    """
+    Return each joint's inertia of everything beyond it about the joint (n_s, n_seg), kg m^2.
+
+    The rods beyond joint i, at the pose, as sum_j m_j (|c_j - p_i|^2 + l_j^2 / 12): m l^2 / 3
+    for the last rod, M L^2 / 3 for a straight strand at its root. A joint damper d_i =
+    damping * this damps the swing of everything beyond the joint at the rate `damping`
+    (1/s), the thesis model's meaning of the same parameter (gamma / I of eq. 1); with
+    d = damping * m l^2 / 3 at every joint, a 20-segment strand's swing about its root was
+    damped 400 times slower than its last segment's, and the hair swung on for a minute.
+    """
+    n_s, n_seg = length.shape
+    seg = frames[..., :, 2] * length[..., None]
+    joints = np.concatenate([np.zeros((n_s, 1, 3)), np.cumsum(seg, axis=1)], axis=1)[:, :-1]
+    centres = joints + 0.5 * seg
+
+    def beyond(x):
+        return np.cumsum(x[:, ::-1], axis=1)[:, ::-1]
+
+    m_cc = beyond(mass * ((centres * centres).sum(-1) + length * length / 12.0))
+    m_c = beyond(mass[..., None] * centres)
+    m = beyond(mass)
+    return m_cc - 2.0 * (m_c * joints).sum(-1) + m * (joints * joints).sum(-1)
+
+
+def gravity_stiffness(frames, length, mass, gravity):
+    """
+    Return the Hessian of the chains' weight potential at a pose, (n_s, n_seg, n_seg, 3, 3).
+
+    Coordinates: a small world rotation x_i at joint i turns everything beyond it about
+    p_i. With C_k = sum over the segments beyond joint k of m_j (c_j - p_k) (centres c_j)
+    and g the gravity vector, the potential -sum m_j g.c_j has the second derivatives
+    H_ik = -(C_k g^T - (g.C_k) I) for i < k (H_ki its transpose) and
+    H_kk = -((g C_k^T + C_k g^T) / 2 - (g.C_k) I): negative across a rod that stands up
+    (the inverted pendulum), positive across one that hangs.
+    """
+    n_s, n_seg = length.shape
+    d = frames[..., :, 2]
+    seg = d * length[..., None]
+    joints = np.concatenate([np.zeros((n_s, 1, 3)), np.cumsum(seg, axis=1)], axis=1)
+    centres = joints[:, :-1] + 0.5 * seg
+    g = np.asarray(gravity, dtype=np.float64)
+    moment = np.cumsum((mass[..., None] * centres)[:, ::-1], axis=1)[:, ::-1]
+    beyond = np.cumsum(mass[:, ::-1], axis=1)[:, ::-1]
+    C = moment - beyond[..., None] * joints[:, :-1]
+    gC = (C @ g)[..., None, None] * np.eye(3)
+    across = -(np.einsum('nka,b->nkab', C, g) - gC)
+    own = -(0.5 * (np.einsum('a,nkb->nkab', g, C) + np.einsum('nka,b->nkab', C, g)) - gC)
+    H = np.zeros((n_s, n_seg, n_seg, 3, 3))
+    for k in range(n_seg):
+        H[:, :k, k] = across[:, k, None]
+        H[:, k, :k] = np.swapaxes(across[:, k, None], -1, -2)
+        H[:, k, k] = own[:, k]
+    return H
+
+
+def stiffness_to_hold(frames, length, mass, k, gravity):
+    """
+    Return per strand by what factor its joint stiffness must grow for the pose to be stable.
+
+    At the pose (an equilibrium: sag-free offsets) the potential's Hessian in the joints'
+    swing coordinates (each joint's two axes across its rod; the joints do not twist) is
+    K + H_g: the springs k_i I (e = 0 there, where the log map is exact) and the weight's
+    gravity_stiffness. A strand that stands up against gravity can make it indefinite:
+    the style is an equilibrium it falls off at the first touch (measured: after a 2 degree
+    head turn, the side strands of thesis_long went 25 cm away and stayed there). The
+    factor is the largest eigenvalue of -K^-1/2 H_g K^-1/2, which scaling K must exceed.
+    """
+    n_s, n_seg = length.shape
+    need = np.zeros(n_s)
+    springs = (k > 0.0).all(axis=1) & np.isfinite(k).all(axis=1)   # else nothing to scale
+    if n_seg == 0 or not springs.any():
+        return need
+    frames, length, mass, k = frames[springs], length[springs], mass[springs], k[springs]
+    H = gravity_stiffness(frames, length, mass, gravity)
+    B = frames[..., :, :2]
+    swing = np.einsum('niap,nikab,nkbq->nipkq', B, H, B).reshape(-1, 2 * n_seg, 2 * n_seg)
+    inv_sqrt_k = np.repeat(k, 2, axis=1) ** -0.5
+    need[springs] = np.linalg.eigvalsh(
+        -swing * inv_sqrt_k[:, :, None] * inv_sqrt_k[:, None, :])[:, -1]
+    return need
+
+
 class ArticulatedSolver:
     """Thin class over step_chains: orientations, angular velocities, joint constants."""
 
@@ -916,7 +1007,8 @@ class ArticulatedSolver:
         k = p.bending_stiffness / sim.length
         k[:, 0] *= p.root_stiffness_scale
         self.k = np.ascontiguousarray(k)
-        self.d = np.ascontiguousarray(p.damping * sim.mass * sim.length ** 2 / 3.0)
+        self.d = np.ascontiguousarray(p.damping * inertia_beyond(self.modeled, sim.length,
+                                                                 sim.mass))
         self.inertia_axial = np.ascontiguousarray(0.5 * sim.mass * p.bundle_radius ** 2)
         if p.gravity_compensation:
             offset = sag_free_offsets(self.modeled, sim.length, sim.mass, self.k,
@@ -926,12 +1018,21 @@ class ArticulatedSolver:
             # the style is stiffened until MAX_PRELOAD holds it (e0 = R^T tau / k)
             size = np.linalg.norm(offset, axis=-1)
             factor = np.maximum(size / MAX_PRELOAD, 1.0)
-            self.k = np.ascontiguousarray(self.k * factor)
+            k = self.k * factor
             offset /= factor[..., None]
-            self.stiffened = float((factor > 1.0).mean())
+            # a strand whose style is an unstable equilibrium gets stiffer joints, all of
+            # them by the same factor (the offsets shrink by it: the same torques hold the
+            # same pose), until its stiffness beats gravity's by STABILITY_MARGIN
+            need = stiffness_to_hold(self.modeled, sim.length, sim.mass, k,
+                                     [0.0, 0.0, -p.gravity])
+            scale = np.maximum(STABILITY_MARGIN * need, 1.0)
+            self.k = np.ascontiguousarray(k * scale[:, None])
+            offset /= scale[:, None, None]
+            self.stabilized = float((scale > 1.0).mean())
+            self.stiffened = float(((factor > 1.0) | (scale[:, None] > 1.0)).mean())
         else:
             offset = np.zeros(self.modeled.shape[:2] + (3,))
-            self.stiffened = 0.0
+            self.stiffened = self.stabilized = 0.0
         self.offset = np.ascontiguousarray(offset)
 
     def state(self):
@@ -1042,7 +1143,7 @@ class ArticulatedSolver:
         mass = params.linear_density * length
         k = params.bending_stiffness / length
         k[..., 0] *= params.root_stiffness_scale
-        d = params.damping * mass * length ** 2 / 3.0
+        d = params.damping * mass * length ** 2 / 3.0   # the least inertia_beyond gives
         inertia = mass * length ** 2 / 3.0 + GAMMA * dt * dt * k + dt * d
         beyond = np.cumsum(mass[..., ::-1], axis=-1)[..., ::-1]
         springs = 0.0
