@@ -1,15 +1,21 @@
 """
-hair_sim_bench accuracy: work against precision of both integrators.
+hair_sim_bench accuracy: work against precision of both strand models.
+
+Every scenario runs the thesis model (`anjyo`) with both of its integrators and the
+articulated chain (`articulated`, one integrator), on the same tables and plots:
 
 1. pendulum: one segment with hinge spring, against the exact ODE (scipy DOP853, rtol
-   1e-10) of the same equation and the analytic small-angle period;
+   1e-10) of the same equation; both models are this pendulum exactly (a rod on a joint
+   with a spring and a damper towards hanging down);
 2. chain: a 10-segment strand released from horizontal, against an independent exact
-   articulated chain: the Lagrangian of 10 rigid rods with the same absolute-angle hinge
-   springs, gravity and damping, integrated by scipy. Anjyo's model lets each segment
-   swing about its start as if that were fixed; the chain carries the inertia and weight of
-   everything below each joint. The difference is the model's own error;
-3. hairstyle: the sample style under scripted head motion and wind, against the same solver
-   at dt = 1/20000 s.
+   articulated chain: the Lagrangian of 10 rigid rods integrated by scipy, with gravity,
+   damping and each model's own springs. For anjyo the absolute-angle hinges of eq. 3
+   and each segment's own damping (the thesis' springs, so the difference is its dynamics:
+   each segment swings about its start as if that were fixed and carries neither the
+   inertia nor the weight of everything below it); for articulated the relative (Hencky)
+   springs and joint dampers d = damping x the inertia beyond the joint;
+3. hairstyle: the sample style under scripted head motion and wind, against the same model
+   (and integrator) at dt = 1/24000 s.
 """
 
 import math
@@ -20,6 +26,7 @@ from hair_sim import load_hairstyle, load_head, paths
 from hair_sim.bench.common import cpu_time, DT_FULL, DT_QUICK, progress, save_figure
 from hair_sim.physics.params import INTEGRATORS, PhysicsParams
 from hair_sim.bench.scenarios import demo
+from hair_sim.physics import SimulationDiverged
 from hair_sim.physics.simulator import HairSimulator
 
 
@@ -27,9 +34,20 @@ def _head():
     return load_head(paths.shipped_head('default_adult'))
 
 
-def _bare(rest, integrator, **params):
-    base = dict(integrator=integrator, collisions=False, inter_strip=False,
-                gravity_compensation=False)
+# (model, integrator) pairs every scenario runs; the articulated chain has one integrator
+VARIANTS = [('anjyo', integ) for integ in INTEGRATORS] + [('articulated', '-')]
+
+
+def _model_params(model, integrator):
+    """Return the PhysicsParams changes that select a variant."""
+    return dict(model=model) if model == 'articulated' else dict(model=model,
+                                                                 integrator=integrator)
+
+
+def _bare(rest, model, integrator, **params):
+    # no drag: the articulated chain feels still air (the references have no air)
+    base = dict(collisions=False, inter_strip=False, gravity_compensation=False,
+                drag_coefficient=0.0, **_model_params(model, integrator))
     base.update(params)
     return HairSimulator.from_strands(rest, _head(), **base)
 
@@ -51,7 +69,10 @@ def _run_sampled(sim, dt, duration, every, motion=None):
         if motion is not None:
             p, q = motion(t)
             sim.set_head_pose(t, p, q)
-        sim.step(dt)
+        try:
+            sim.step(dt)
+        except SimulationDiverged:
+            return np.array(times), np.array(out), False
         if not np.all(np.isfinite(sim.pos)):
             return np.array(times), np.array(out), False
         if i % m == 0:
@@ -88,23 +109,27 @@ def pendulum_reference(length, amplitude, duration, params):
     return tip
 
 
-def _bare_records(scenario, rest, start, ref, dts, duration, scored=slice(None)):
+def _bare_records(scenario, rest, start, refs, dts, duration, scored=slice(None)):
     """
-    Release one bare strand at every dt with both integrators and score it.
+    Release one bare strand at every dt with every variant and score it.
 
     The strand has rest shape `rest` and starts along directions `start`; its vertices
-    `scored` are compared with ref(times) at every step.
+    `scored` are compared with refs[model](times) at every step.
     """
     root = rest[0, 0]
     out = []
-    for integ in INTEGRATORS:
-        for dt in progress(dts, '%s %s' % (scenario, integ)):
-            sim = _bare(rest, integ)
+    for model, integ in VARIANTS:
+        for dt in progress(dts, '%s %s %s' % (scenario, model, integ)):
+            sim = _bare(rest, model, integ)
             sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
             sim.set_directions(start)
             (times, pos, ok), cost = cpu_time(_run_sampled, sim, dt, duration, dt)
-            rms, final = _errors(pos[:, 0, scored] - root, ref(times))
-            out.append({'scenario': scenario, 'integrator': integ, 'dt': dt,
+            # a run that tripped the step guard is scored (and marked unstable); one that
+            # diverged has no positions to score
+            complete = len(times) == int(round(duration / dt)) + 1
+            rms, final = _errors(pos[:, 0, scored] - root, refs[model](times)) if complete \
+                else (float('nan'), float('nan'))
+            out.append({'scenario': scenario, 'model': model, 'integrator': integ, 'dt': dt,
                         'cost_s_per_sim_s': cost / duration, 'rms_error_m': rms,
                         'final_error_m': final, 'stable': ok})
     return out
@@ -117,19 +142,37 @@ def pendulum_records(dts, duration):
     root = np.array([0.0, 0.0, 1.0])
     start = np.array([[[math.sin(amp), 0.0, -math.cos(amp)]]])
 
+    def tip(times):
+        return ref(times)[:, None]
     return _bare_records('pendulum', np.array([[root, root + [0, 0, -length]]]), start,
-                         lambda times: ref(times)[:, None], dts, duration, slice(1, 2))
+                         {'anjyo': tip, 'articulated': tip}, dts, duration, slice(1, 2))
 
 
 # ------------------------------------------------------------------ 2. chain
-def chain_reference(n, length, duration, params):
-    """Exact planar chain of n rods, absolute angles phi from the horizontal (y up)."""
+def chain_reference(n, length, duration, params, springs='absolute'):
+    """
+    Exact planar chain of n rods, absolute angles phi from the horizontal (y up).
+
+    springs 'absolute': each rod's hinge pulls it towards hanging down, -k (phi_i - rest),
+    and each rod is damped on its own angular velocity, -damping (m l^2 / 3) phi_i' (eqs.
+    1-3). 'relative': a spring k on each joint's relative angle (the first against the
+    fixed base), V = k/2 sum (phi_i - phi_{i-1})^2, and joint dampers d_i = damping x the
+    inertia of the rods beyond joint i about it, hanging straight down (Rayleigh function
+    sum d_i (phi_i' - phi_{i-1}')^2 / 2).
+    """
     from scipy.integrate import solve_ivp
     m = params.linear_density * length
     k = params.bending_stiffness / length
     i_end = m * length ** 2 / 3.0
     i_c = m * length ** 2 / 12.0
     rest = -math.pi / 2
+    # joint i's relative angle is (diff @ phi)[i] - offset[i]
+    diff = np.eye(n) - np.eye(n, k=-1)
+    offset = np.zeros(n)
+    offset[0] = rest
+    beyond = np.array([m * sum((j - i + 0.5) ** 2 * length ** 2 + length ** 2 / 12.0
+                               for j in range(i, n)) for i in range(n)])
+    joint_damping = diff.T @ np.diag(params.damping * beyond) @ diff
     # a[k, i]: lever of rod i's angle in the position of rod k's centre
     a = np.zeros((n, n))
     for kk in range(n):
@@ -140,11 +183,14 @@ def chain_reference(n, length, duration, params):
 
     def rhs(_t, y):
         phi, w = y[:n], y[n:]
-        diff = phi[:, None] - phi[None, :]
-        M = c * np.cos(diff) + np.diag(np.full(n, i_c))
-        q = (-k * (phi - rest) - params.gravity * np.cos(phi) * g_lever
-             - params.damping * i_end * w)
-        rhs_q = q - (c * np.sin(diff) * w[None, :] ** 2).sum(axis=1)
+        between = phi[:, None] - phi[None, :]
+        M = c * np.cos(between) + np.diag(np.full(n, i_c))
+        if springs == 'absolute':
+            q = -k * (phi - rest) - params.damping * i_end * w
+        else:
+            q = -k * diff.T @ (diff @ phi - offset) - joint_damping @ w
+        q = q - params.gravity * np.cos(phi) * g_lever
+        rhs_q = q - (c * np.sin(between) * w[None, :] ** 2).sum(axis=1)
         return np.concatenate([w, np.linalg.solve(M, rhs_q)])
 
     sol = solve_ivp(rhs, (0.0, duration), np.zeros(2 * n), method='DOP853', rtol=1e-10,
@@ -160,10 +206,12 @@ def chain_reference(n, length, duration, params):
 def chain_records(dts, duration):
     """Return the records of scenario 2 (10 segments from horizontal), every integrator/dt."""
     n, length = 10, 0.03
-    ref = chain_reference(n, length, duration, PhysicsParams())
+    refs = {'anjyo': chain_reference(n, length, duration, PhysicsParams()),
+            'articulated': chain_reference(n, length, duration, PhysicsParams(),
+                                           springs='relative')}
     root = np.array([0.0, 0.0, 1.0])
     rest = np.array([root + [0, 0, -length * j] for j in range(n + 1)])[None]
-    return _bare_records('chain', rest, np.tile([1.0, 0.0, 0.0], (1, n, 1)), ref, dts,
+    return _bare_records('chain', rest, np.tile([1.0, 0.0, 0.0], (1, n, 1)), refs, dts,
                          duration)
 
 
@@ -179,20 +227,20 @@ def hairstyle_records(dts, duration, ref_dt=1.0 / 24000):
     rates = [int(round(1 / dt)) for dt in dts]
     every = 1.0 / math.gcd(*rates)
 
-    def run(integ, dt):
-        sim = HairSimulator(style, integrator=integ)
+    def run(model, integ, dt):
+        sim = HairSimulator(style, **_model_params(model, integ))
         sim.set_head_pose(0.0, *demo(0.0))
         sim.set_wind([3.0, 1.0, 0.0], turbulence=0.3, seed=1)
         return cpu_time(_run_sampled, sim, dt, duration, every, motion=demo)
 
     out = []
-    for integ in INTEGRATORS:
-        (_, ref, _), _ = run(integ, ref_dt)
-        for dt in progress(dts, 'hairstyle %s' % integ):
-            (_, pos, ok), cost = run(integ, dt)
+    for model, integ in VARIANTS:
+        (_, ref, _), _ = run(model, integ, ref_dt)
+        for dt in progress(dts, 'hairstyle %s %s' % (model, integ)):
+            (_, pos, ok), cost = run(model, integ, dt)
             rms, final = _errors(pos, ref) if ok else (float('nan'), float('nan'))
-            out.append({'scenario': 'hairstyle', 'integrator': integ, 'dt': dt,
-                        'cost_s_per_sim_s': cost / duration, 'rms_error_m': rms,
+            out.append({'scenario': 'hairstyle', 'model': model, 'integrator': integ,
+                        'dt': dt, 'cost_s_per_sim_s': cost / duration, 'rms_error_m': rms,
                         'final_error_m': final, 'stable': ok})
     return out
 
@@ -217,12 +265,14 @@ def plot(records, plot_dir):
     paths_out = []
     for scen in ('pendulum', 'chain', 'hairstyle'):
         fig, ax = plt.subplots(figsize=(5, 4))
-        for integ, marker in zip(INTEGRATORS, 'os'):
-            rs = [r for r in records if r['scenario'] == scen and r['integrator'] == integ
-                  and r['stable'] and r['rms_error_m'] and r['rms_error_m'] > 0]
+        for (model, integ), marker in zip(VARIANTS, 'os^'):
+            rs = [r for r in records if r['scenario'] == scen and r['model'] == model
+                  and r['integrator'] == integ and r['stable'] and r['rms_error_m']
+                  and r['rms_error_m'] > 0]
             if rs:
                 ax.loglog([r['cost_s_per_sim_s'] for r in rs], [r['rms_error_m'] for r in rs],
-                          marker=marker, label=integ)
+                          marker=marker, label=model if model == 'articulated' else
+                          '%s, %s' % (model, integ))
                 for r in rs:
                     xy = (r['cost_s_per_sim_s'], r['rms_error_m'])
                     ax.annotate('1/%d' % round(1 / r['dt']), xy, fontsize=6)

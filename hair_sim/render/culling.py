@@ -177,6 +177,44 @@ def _rows_held(pos, strands, bottoms, j0, j1, grow, eye, cones, first):
 
 
 @njit(cache=True)
+def _held_with_any_walls(pos, strands, grow, projection, eye, cones, occ, first):
+    """
+    Return a sphere whose shadow holds the strip and every wall it could have, or -1.
+
+    No wall bottom is worked out: a wall runs from an edge point A to its projection,
+    which lies on the segment from A to A', a point of the projection sphere S (the
+    bisection of thesis 3.2), or is A moved by the fix-up length C. Sphere k with the
+    convex part of its shadow is itself convex (the cone touches the sphere along the
+    circle that bounds the part): when S lies in sphere k (or in its shadow) and every
+    simulated vertex, grown by its deviation and C, lies in the shadow, so does all of the
+    strip with its walls, whatever the projections turn out to be.
+    """
+    a, b = strands
+    c, rs, fix = projection.centre, projection.rs, projection.fix_len
+    n = cones.shape[0]
+    V = pos.shape[1]
+    for i in range(n):
+        k = _nth_sphere(first, i, n)
+        dx, dy, dz = c[0] - occ[k, 0], c[1] - occ[k, 1], c[2] - occ[k, 2]
+        if not (sqrt(dx * dx + dy * dy + dz * dz) + rs <= occ[k, 3]
+                or ball_in_shadow(c[0], c[1], c[2], rs, eye, cones, k)):
+            continue
+        held = True
+        for q in range(2):
+            st = a if q == 0 else b
+            for j in range(V):
+                if not ball_in_shadow(pos[st, j, 0], pos[st, j, 1], pos[st, j, 2],
+                                      grow[q, j] + fix, eye, cones, k):
+                    held = False
+                    break
+            if not held:
+                break
+        if held:
+            return k
+    return -1
+
+
+@njit(cache=True)
 def _strip_hidden(pos, strands, bottoms, grow, eye, cones, first, work):
     """
     Return a sphere that held the last piece of a hidden strip, or -1 if it may be seen.
@@ -270,6 +308,10 @@ def visible_strips(pos,
                     for r in range(j - 1, j + 2):
                         if g > grow[q, r]:
                             grow[q, r] = g
+            k = _held_with_any_walls(pos, (a, b), grow, projection, eye, cones, occ, last)
+            if k >= 0:                           # hidden, walls and all: nothing projected
+                last = k
+                continue
             strip_wall_bottoms(
                 pos,
                 strip_strands,

@@ -19,14 +19,17 @@ def bench(command, tmp_path):
 
 
 def test_accuracy_quick(tmp_path):
-    """Records {scenario, integrator, dt, cost, rms, final, stable} and three plots."""
+    """Records {scenario, model, integrator, dt, cost, rms, final, stable} and three plots."""
     rc, records = bench('accuracy', tmp_path)
     assert rc == 0
-    keys = {'scenario', 'integrator', 'dt', 'cost_s_per_sim_s', 'rms_error_m', 'final_error_m',
-            'stable'}
+    keys = {'scenario', 'model', 'integrator', 'dt', 'cost_s_per_sim_s', 'rms_error_m',
+            'final_error_m', 'stable'}
     assert all(keys <= set(r) for r in records)
     assert {r['scenario'] for r in records} == {'pendulum', 'chain', 'hairstyle'}
-    assert {r['integrator'] for r in records} == {'explicit', 'implicit'}
+    # both models on every scenario: the thesis model's two integrators and the chain's one
+    for scen in ('pendulum', 'chain', 'hairstyle'):
+        assert {(r['model'], r['integrator']) for r in records if r['scenario'] == scen} == \
+            {('anjyo', 'explicit'), ('anjyo', 'implicit'), ('articulated', '-')}
     for scen in ('pendulum', 'chain', 'hairstyle'):
         assert os.path.isfile(tmp_path / ('accuracy_%s.png' % scen))
 
