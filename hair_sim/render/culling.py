@@ -12,13 +12,17 @@ ball, are in the shadow of one sphere. No trigonometry: each sphere's cone is ke
 axis and the sine and cosine of its half-angle.
 
 A strip with a simulated vertex in plain view is visible at once (most visible strips
-stop there, after a few dot products). For the others the wall bottoms are worked out
-(the projections of the simulated vertices), and the strip is hidden when one sphere's
-shadow holds every vertex and bottom; otherwise every two consecutive rows must be held by
-one shadow, or else their three patches (the face between the two edges, and each edge
-with its wall), each split at most MAX_SPLITS times. Anything left over is drawn. The
-spheres are tried from the one that held the last piece. The test suite checks against a
-ray caster that no culled strip is hit by any ray.
+stop there, after a few dot products). The others are proven hidden piece by piece, the
+walls' projections worked out only where needed. Every wall runs from an edge point
+towards the projection sphere S (or is a short fix-up), and a sphere with the convex part
+of its shadow is convex too, so a sphere that holds S holds the walls of any vertices its
+shadow holds grown by the fix-up length: the whole strip at once, or two rows at a time,
+without projecting. Rows that no such sphere holds get their wall bottoms (the
+projections of the simulated vertices) and are held by one shadow with them, or else
+their three patches (the face between the two edges, and each edge with its wall) are,
+each split at most MAX_SPLITS times. Anything left over is drawn. The spheres are tried
+from the one that held the last piece. The test suite checks against a ray caster that no
+culled strip is hit by any ray.
 """
 
 from math import sqrt
@@ -177,32 +181,44 @@ def _rows_held(pos, strands, bottoms, j0, j1, grow, eye, cones, first):
 
 
 @njit(cache=True)
-def _held_with_any_walls(pos, strands, grow, projection, eye, cones, occ, first):
+def holds_projection_sphere(projection, eye, cones, occ):
+    """Return per sphere whether it, or the convex part of its shadow, holds the sphere S."""
+    c, rs = projection.centre, projection.rs
+    out = np.zeros(occ.shape[0], dtype=np.bool_)
+    for k in range(occ.shape[0]):
+        dx, dy, dz = c[0] - occ[k, 0], c[1] - occ[k, 1], c[2] - occ[k, 2]
+        out[k] = (sqrt(dx * dx + dy * dy + dz * dz) + rs <= occ[k, 3]
+                  or ball_in_shadow(c[0], c[1], c[2], rs, eye, cones, k))
+    return out
+
+
+@njit(cache=True)
+def _held_with_any_walls(pos, strands, rows, grow, projection, shadows, first):
     """
-    Return a sphere whose shadow holds the strip and every wall it could have, or -1.
+    Return a sphere whose shadow holds rows j0..j1 and every wall they could have, or -1.
 
     No wall bottom is worked out: a wall runs from an edge point A to its projection,
     which lies on the segment from A to A', a point of the projection sphere S (the
     bisection of thesis 3.2), or is A moved by the fix-up length C. Sphere k with the
     convex part of its shadow is itself convex (the cone touches the sphere along the
     circle that bounds the part): when S lies in sphere k (or in its shadow) and every
-    simulated vertex, grown by its deviation and C, lies in the shadow, so does all of the
-    strip with its walls, whatever the projections turn out to be.
+    simulated vertex of the rows, grown by its deviation and C, lies in the shadow, so do
+    those rows with their walls, whatever the projections turn out to be.
+    shadows is (eye, cones, which spheres hold S: holds_projection_sphere).
     """
     a, b = strands
-    c, rs, fix = projection.centre, projection.rs, projection.fix_len
+    j0, j1 = rows
+    eye, cones, holds_s = shadows
+    fix = projection.fix_len
     n = cones.shape[0]
-    V = pos.shape[1]
     for i in range(n):
         k = _nth_sphere(first, i, n)
-        dx, dy, dz = c[0] - occ[k, 0], c[1] - occ[k, 1], c[2] - occ[k, 2]
-        if not (sqrt(dx * dx + dy * dy + dz * dz) + rs <= occ[k, 3]
-                or ball_in_shadow(c[0], c[1], c[2], rs, eye, cones, k)):
+        if not holds_s[k]:
             continue
         held = True
         for q in range(2):
             st = a if q == 0 else b
-            for j in range(V):
+            for j in range(j0, j1 + 1):
                 if not ball_in_shadow(pos[st, j, 0], pos[st, j, 1], pos[st, j, 2],
                                       grow[q, j] + fix, eye, cones, k):
                     held = False
@@ -215,21 +231,34 @@ def _held_with_any_walls(pos, strands, grow, projection, eye, cones, occ, first)
 
 
 @njit(cache=True)
-def _strip_hidden(pos, strands, bottoms, grow, eye, cones, first, work):
+def _strip_hidden(pos, strip, walls, grow, shadows, first, work):
     """
     Return a sphere that held the last piece of a hidden strip, or -1 if it may be seen.
 
-    One sphere's shadow may hold the whole strip (vertices and wall bottoms); else each
-    pair of rows; else that pair's three patches (the face between the edges, each edge
-    with its wall), split as quad_in_shadow does. Corner balls grow by grow (2, V).
+    strip is (s, strip_strands, sigma_s); walls (projection, bottoms, which rows have
+    their bottoms worked out, the projection's scratch). Each pair of rows is held by one
+    sphere's shadow without projecting its walls (_held_with_any_walls), or else its wall
+    bottoms are worked out and one shadow holds the rows and bottoms, or else each of
+    its three patches (the face between the edges, each edge with its wall), split as
+    quad_in_shadow does. Corner balls grow by grow (2, V).
     """
-    a, b = strands
+    s, strip_strands, sigma_s = strip
+    projection, bottoms, projected, spans = walls
+    eye, cones, _ = shadows
+    a, b = strip_strands[s, 0], strip_strands[s, 1]
+    strands = (a, b)
     V = pos.shape[1]
-    k = _rows_held(pos, strands, bottoms, 0, V - 1, grow, eye, cones, first)
-    if k >= 0:
-        return k
     k = first
     for j in range(V - 1):
+        held = _held_with_any_walls(pos, strands, (j, j + 1), grow, projection, shadows, k)
+        if held >= 0:
+            k = held
+            continue
+        for r in range(j, j + 2):
+            if not projected[r]:
+                strip_wall_bottoms(pos, strip_strands, s, sigma_s, projection, (r, r),
+                                   bottoms, spans)
+                projected[r] = True
         held = _rows_held(pos, strands, bottoms, j, j + 1, grow, eye, cones, k)
         if held >= 0:
             k = held
@@ -275,6 +304,8 @@ def visible_strips(pos,
     n_occ = cones.shape[0]
     spans = np.empty((projection.scalp.shape[0], 2))  # the wall bottoms' scratch
     work = np.empty((SPLIT_ROWS, 13))           # quad_in_shadow's pieces
+    projected = np.zeros(V, dtype=np.bool_)      # rows whose wall bottoms are worked out
+    shadows = (eye, cones, holds_projection_sphere(projection, eye, cones, occ))
     count = 0
     for s in range(n_strips):
         a, b = strip_strands[s, 0], strip_strands[s, 1]
@@ -308,20 +339,18 @@ def visible_strips(pos,
                     for r in range(j - 1, j + 2):
                         if g > grow[q, r]:
                             grow[q, r] = g
-            k = _held_with_any_walls(pos, (a, b), grow, projection, eye, cones, occ, last)
+            k = _held_with_any_walls(pos, (a, b), (0, V - 1), grow, projection, shadows, last)
             if k >= 0:                           # hidden, walls and all: nothing projected
                 last = k
                 continue
-            strip_wall_bottoms(
-                pos,
-                strip_strands,
-                s,
-                sigma[s],
-                projection,
-                bottoms,
-                spans,
-            )
-            k = _strip_hidden(pos, (a, b), bottoms, grow, eye, cones, last, work)
+            projected[:] = False
+            k = _strip_hidden(pos,
+                              (s, strip_strands, sigma[s]),
+                              (projection, bottoms, projected, spans),
+                              grow,
+                              shadows,
+                              last,
+                              work)
             vis = k < 0
             if not vis:
                 last = k

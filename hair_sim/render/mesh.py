@@ -122,6 +122,7 @@ class HairRenderer:
         self._out = np.zeros((self.n_strips, self.lod.verts_per_strip, 3))
         self._flags = np.zeros((self.n_strips, 2, self.lod.rows), dtype=np.int64)
         self._vis = np.zeros(self.n_strips, dtype=np.int64)   # visible strips, culling writes
+        self._culled = None             # (strips, their triangles) of the last culled mesh
         self._bottoms = np.zeros_like(rest)
         self._last_key = None
         self._last = None
@@ -214,7 +215,10 @@ class HairRenderer:
             topology = self.topology()
             indices, uvs, offsets = topology.indices, topology.uvs, topology.strip_offsets
         else:
-            indices = culled_triangles(self._local, sel, nv)
+            # the same strips as last frame (the usual case): the same triangles
+            if self._culled is None or not np.array_equal(self._culled[0], sel):
+                self._culled = (sel.copy(), culled_triangles(self._local, sel, nv))
+            indices = self._culled[1]
             uvs = self._uvs_all[:k * nv]
             offsets = self._offsets_all[:k + 1]
         self.last_f64 = out                 # float64 U-shape vertices of this frame (k, nv, 3)

@@ -252,19 +252,21 @@ def strip_wall_bottoms(pos,
                        s,
                        sigma_s,
                        projection,
+                       rows,
                        out,
                        spans):
     """
     Write where the U-shape walls below strip s's simulated vertices end (fix-ups too).
 
-    spans (n_scalp, 2) is project_to_scalp's scratch.
+    Rows j0..j1 (rows = (j0, j1), inclusive); spans (n_scalp, 2) is project_to_scalp's
+    scratch.
     """
     scalp, centre, rs, delta = (projection.scalp, projection.centre, projection.rs,
                                 projection.delta)
     max_dist, fix_len = projection.max_dist, projection.fix_len
     V = pos.shape[1]
     l0, l1 = strip_strands[s, 0], strip_strands[s, 1]
-    for j in range(V):
+    for j in range(rows[0], rows[1] + 1):
         # the strip normal AB x AC with A the left edge, as ushape() takes it; one a row
         j0, j1 = max(j - 1, 0), min(j + 1, V - 1)
         nx, ny, nz = strip_normal(pos[l0, j], pos[l1, j], pos[l0, j0], pos[l1, j0],

@@ -88,3 +88,19 @@ def test_a_ball_called_shadowed_is_hidden_from_every_ray(seed):
             point = centre + rho * rng.uniform(0.5, 1.0) * v / np.linalg.norm(v)
             assert _ray_blocked(eye, point, sphere), (eye, centre, rho, point)
     assert shadowed > 100                      # the test saw shadowed balls
+
+
+def test_culled_meshes_have_their_own_triangles_when_the_view_changes(settled, renderer):
+    """Culled meshes from alternating viewpoints: each one's triangles are its strips'."""
+    from hair_sim.render.mesh import culled_triangles
+    R, p = settled.head_pose
+    eyes = [[0.8, 0.0, 0.0], [0.5, 0.6, 0.0], [0.8, 0.0, 0.0], [0.5, -0.6, 0.0]]
+    seen = set()
+    for eye in eyes + eyes:
+        mesh = renderer.mesh(settled.pos, R, p, viewpoint=eye)
+        strips = mesh.strip_ids.astype(np.int64)
+        seen.add(tuple(strips))
+        fresh = culled_triangles(renderer._local, strips, mesh.verts_per_strip)
+        assert np.array_equal(mesh.indices, fresh)
+        assert mesh.indices.max() < len(mesh.vertices)
+    assert len(seen) >= 3                        # the views really drew different strips
