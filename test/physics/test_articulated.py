@@ -513,3 +513,14 @@ def test_damped_chain_release_matches_the_lagrangian_with_joint_dampers():
     undamped = accuracy.chain_reference(n, length, duration, params.replaced(damping=0.0),
                                         springs='relative')
     assert accuracy._errors(pos[:, 0] - root, undamped(times))[0] > 5e-3
+
+
+def test_the_stability_check_gives_the_same_answer_a_strand_at_a_time(monkeypatch):
+    """The check works in chunks (bounded memory on big styles) without changing a factor."""
+    sim = HairSimulator(load_hairstyle(paths.shipped_style('thesis_long')), model='articulated')
+    k = sim.params.bending_stiffness / sim.length
+    args = (sim.solver.modeled, sim.length, sim.mass, k, [0.0, 0.0, -GRAVITY])
+    whole = articulated.stiffness_to_hold(*args)
+    assert (whole > 1.0 / articulated.STABILITY_MARGIN).any()   # some strands need it
+    monkeypatch.setattr(articulated, 'STABILITY_CHUNK_BYTES', 1)
+    assert np.array_equal(articulated.stiffness_to_hold(*args), whole)
