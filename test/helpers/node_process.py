@@ -109,9 +109,16 @@ class Client:
         return out
 
     def close(self):
-        """Shut the client down."""
+        """
+        Shut the client down: the executor, then its spinning thread, then node and context.
+
+        The spin thread is joined before the context goes: shut down under a thread still
+        waiting in it, rclpy's executor spun hot on the dead wait set and starved the test's
+        main thread of the GIL for minutes (seen in CI, in a module teardown).
+        """
         import rclpy
-        self.executor.shutdown()
+        self.executor.shutdown(timeout_sec=10.0)
+        self._thread.join(timeout=10.0)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
 
