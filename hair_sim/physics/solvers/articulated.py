@@ -867,6 +867,18 @@ def minimal_rotation(a, b):
     return R
 
 
+def joints_and_centres(frames, length):
+    """Return each segment's start p_i and centre c_i (n_s, n_seg, 3), roots at the origin."""
+    seg = frames[..., :, 2] * length[..., None]
+    joints = np.concatenate([np.zeros_like(seg[:, :1]), np.cumsum(seg, axis=1)[:, :-1]], axis=1)
+    return joints, joints + 0.5 * seg
+
+
+def sum_beyond(x):
+    """Return, along axis 1, each segment's sum over itself and every segment beyond it."""
+    return np.cumsum(x[:, ::-1], axis=1)[:, ::-1]
+
+
 def sag_free_offsets(frames, length, mass, k, gravity):
     """
     Return each joint's spring offset e0 (n_s, n_seg, 3, child frame) that holds the pose.
@@ -877,16 +889,11 @@ def sag_free_offsets(frames, length, mass, k, gravity):
     the modeled pose (e = 0) with e0 = R^T tau / k. An offset, not a turned rest rotation:
     a soft joint may need more than half a turn of spring, which a rotation cannot hold.
     """
-    n_s, n_seg = length.shape
-    d = frames[..., :, 2]
-    seg = d * length[..., None]
-    joints = np.concatenate([np.zeros((n_s, 1, 3)), np.cumsum(seg, axis=1)], axis=1)
-    centres = joints[:, :-1] + 0.5 * seg
+    joints, centres = joints_and_centres(frames, length)
     weight = mass[..., None] * np.asarray(gravity, dtype=np.float64)
     # moment of the weights beyond joint i about joint i: sum_j (c_j - p_i) x w_j
-    moment_about_origin = np.cumsum(np.cross(centres, weight)[:, ::-1], axis=1)[:, ::-1]
-    weight_beyond = np.cumsum(weight[:, ::-1], axis=1)[:, ::-1]
-    tau = -(moment_about_origin - np.cross(joints[:, :-1], weight_beyond))
+    moment_about_origin = sum_beyond(np.cross(centres, weight))
+    tau = -(moment_about_origin - np.cross(joints, sum_beyond(weight)))
     e0 = np.zeros_like(tau)
     held = k > 0
     e0[held] = np.einsum('nji,nj->ni', frames[held], tau[held]) / k[held][:, None]
@@ -906,17 +913,10 @@ def inertia_beyond(frames, length, mass):
     9-segment, 25 cm chain decayed at 0.00-0.13/s, and after a head turn the shipped styles
     were still moving 12 s later (measured).
     """
-    n_s, n_seg = length.shape
-    seg = frames[..., :, 2] * length[..., None]
-    joints = np.concatenate([np.zeros((n_s, 1, 3)), np.cumsum(seg, axis=1)], axis=1)[:, :-1]
-    centres = joints + 0.5 * seg
-
-    def beyond(x):
-        return np.cumsum(x[:, ::-1], axis=1)[:, ::-1]
-
-    m_cc = beyond(mass * ((centres * centres).sum(-1) + length * length / 12.0))
-    m_c = beyond(mass[..., None] * centres)
-    m = beyond(mass)
+    joints, centres = joints_and_centres(frames, length)
+    m_cc = sum_beyond(mass * ((centres * centres).sum(-1) + length * length / 12.0))
+    m_c = sum_beyond(mass[..., None] * centres)
+    m = sum_beyond(mass)
     return m_cc - 2.0 * (m_c * joints).sum(-1) + m * (joints * joints).sum(-1)
 
 
@@ -932,14 +932,10 @@ def gravity_stiffness(frames, length, mass, gravity):
     (the inverted pendulum), positive across one that hangs.
     """
     n_s, n_seg = length.shape
-    d = frames[..., :, 2]
-    seg = d * length[..., None]
-    joints = np.concatenate([np.zeros((n_s, 1, 3)), np.cumsum(seg, axis=1)], axis=1)
-    centres = joints[:, :-1] + 0.5 * seg
+    joints, centres = joints_and_centres(frames, length)
     g = np.asarray(gravity, dtype=np.float64)
-    moment = np.cumsum((mass[..., None] * centres)[:, ::-1], axis=1)[:, ::-1]
-    beyond = np.cumsum(mass[:, ::-1], axis=1)[:, ::-1]
-    C = moment - beyond[..., None] * joints[:, :-1]
+    # C_k = sum_{j >= k} m_j (c_j - p_k)
+    C = sum_beyond(mass[..., None] * centres) - sum_beyond(mass)[..., None] * joints
     gC = (C @ g)[..., None, None] * np.eye(3)
     across = -(np.einsum('nka,b->nkab', C, g) - gC)
     own = -(0.5 * (np.einsum('a,nkb->nkab', g, C) + np.einsum('nka,b->nkab', C, g)) - gC)
