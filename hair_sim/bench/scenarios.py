@@ -41,6 +41,14 @@ def demo(t):
     return np.array([0.0, sway, bob]), quat_from_euler(0.0, pitch, yaw)
 
 
+def quarter_turn(t0, duration=0.3):
+    """Return the motion of a 90 degree yaw from t0 over `duration` s (smoothstep), then held."""
+    def motion(t):
+        return np.zeros(3), quat_from_euler(0.0, 0.0,
+                                            math.pi / 2 * smoothstep((t - t0) / duration))
+    return motion
+
+
 def drive(sim, motion, t0, duration, dt, every=None):
     """Feed `motion(t)` poses to sim and step it from t0 for duration; call every(sim)."""
     n = int(round(duration / dt))

@@ -2,6 +2,18 @@
 
 import numpy as np
 
+from hair_sim import DEFAULT_DT, HairSimulator
+
+
+def settled(style, **params):
+    """Build a simulator of `style` and let it settle (sleep) under a still head."""
+    sim = HairSimulator(style, **params)
+    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+    while not sim.sleeping:
+        sim.step(DEFAULT_DT)
+        assert sim.time < 3.0, 'did not settle'
+    return sim
+
 
 def footprint_coverage(style, strips, reach=0.02):
     """Fraction of hair-region scalp samples with a strip point radially above within reach."""

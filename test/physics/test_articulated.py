@@ -464,18 +464,12 @@ def test_a_soft_standing_strand_is_stiffened_until_it_stands(head, n, monkeypatc
                                         'side_swept_long'])
 def test_shipped_styles_lag_a_head_turn_return_and_sleep(style_name):
     """A 90 degree yaw in 0.3 s: tips >= 2 cm behind, then back within 1 cm, asleep by 10 s."""
-    from hair_sim.bench.scenarios import drive, quat_from_euler, smoothstep
-    sim = HairSimulator(load_hairstyle(paths.shipped_style(style_name)), model='articulated')
-    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
-    while not sim.sleeping:
-        sim.step(DEFAULT_DT)
-        assert sim.time < 3.0, 'did not settle'
+    from hair_sim.bench.scenarios import drive, quarter_turn
+    from helpers.styles import settled
+    sim = settled(load_hairstyle(paths.shipped_style(style_name)), model='articulated')
     tips = sim.positions_in_head_frame()[:, -1].copy()
     t0 = sim.time
-
-    def turn(t):
-        return np.zeros(3), quat_from_euler(0.0, 0.0, math.pi / 2 * smoothstep((t - t0) / 0.3))
-
+    turn = quarter_turn(t0)
     t = drive(sim, turn, t0, 0.3, DEFAULT_DT)
     lag = np.linalg.norm(sim.positions_in_head_frame()[:, -1] - tips, axis=1).mean()
     assert lag >= 0.02, lag

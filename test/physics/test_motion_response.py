@@ -1,23 +1,12 @@
 """Head turns, translations and wind move the hair the way inertia and drag should."""
 
-import math
-
 import numpy as np
 
 from hair_sim import DEFAULT_DT, HairSimulator
-from hair_sim.bench.scenarios import drive, quat_from_euler, smoothstep, violent
+from hair_sim.bench.scenarios import drive, quarter_turn, smoothstep, violent
+from helpers.styles import settled
 
 DT = DEFAULT_DT
-
-
-def settled(style, **params):
-    """Build a simulator of `style` and let it settle (sleep) under a still head."""
-    sim = HairSimulator(style, **params)
-    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
-    while not sim.sleeping:
-        sim.step(DT)
-        assert sim.time < 3.0, 'did not settle'
-    return sim
 
 
 def test_determinism(long_style):
@@ -37,9 +26,7 @@ def test_head_turn_lags_and_recovers(long_style):
     tips0 = sim.positions_in_head_frame()[:, -1].copy()
     t0 = sim.time
 
-    def turn(t):
-        return np.zeros(3), quat_from_euler(0.0, 0.0, math.pi / 2 * smoothstep((t - t0) / 0.3))
-
+    turn = quarter_turn(t0)
     t = drive(sim, turn, t0, 0.3, DT)
     lag = np.linalg.norm(sim.positions_in_head_frame()[:, -1] - tips0, axis=1).mean()
     assert lag >= 0.02, lag
