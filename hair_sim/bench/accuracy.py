@@ -149,16 +149,19 @@ def pendulum_records(dts, duration):
 
 
 # ------------------------------------------------------------------ 2. chain
-def chain_reference(n, length, duration, params, springs='absolute'):
+def chain_reference(n, length, duration, params, springs='absolute', joint_damping_share=1.0,
+                    air_damping=0.0):
     """
     Exact planar chain of n rods, absolute angles phi from the horizontal (y up).
 
     springs 'absolute': each rod's hinge pulls it towards hanging down, -k (phi_i - rest),
     and each rod is damped on its own angular velocity, -damping (m l^2 / 3) phi_i' (eqs.
     1-3). 'relative': a spring k on each joint's relative angle (the first against the
-    fixed base), V = k/2 sum (phi_i - phi_{i-1})^2, and joint dampers d_i = damping x the
-    inertia of the rods beyond joint i about it, hanging straight down (Rayleigh function
-    sum d_i (phi_i' - phi_{i-1}')^2 / 2).
+    fixed base), V = k/2 sum (phi_i - phi_{i-1})^2, and joint dampers d_i =
+    joint_damping_share x damping x the inertia of the rods beyond joint i about it,
+    hanging straight down (Rayleigh function sum d_i (phi_i' - phi_{i-1}')^2 / 2).
+    air_damping (1/s): a force -air_damping m v on every rod's centre (its generalized
+    force is -air_damping times the translational part of the mass matrix times phi').
     """
     from scipy.integrate import solve_ivp
     m = params.linear_density * length
@@ -172,7 +175,7 @@ def chain_reference(n, length, duration, params, springs='absolute'):
     offset[0] = rest
     beyond = np.array([m * sum((j - i + 0.5) ** 2 * length ** 2 + length ** 2 / 12.0
                                for j in range(i, n)) for i in range(n)])
-    joint_damping = diff.T @ np.diag(params.damping * beyond) @ diff
+    joint_damping = diff.T @ np.diag(joint_damping_share * params.damping * beyond) @ diff
     # a[k, i]: lever of rod i's angle in the position of rod k's centre
     a = np.zeros((n, n))
     for kk in range(n):
@@ -189,7 +192,7 @@ def chain_reference(n, length, duration, params, springs='absolute'):
             q = -k * (phi - rest) - params.damping * i_end * w
         else:
             q = -k * diff.T @ (diff @ phi - offset) - joint_damping @ w
-        q = q - params.gravity * np.cos(phi) * g_lever
+        q = q - params.gravity * np.cos(phi) * g_lever - air_damping * (c * np.cos(between)) @ w
         rhs_q = q - (c * np.sin(between) * w[None, :] ** 2).sum(axis=1)
         return np.concatenate([w, np.linalg.solve(M, rhs_q)])
 
@@ -203,12 +206,20 @@ def chain_reference(n, length, duration, params, springs='absolute'):
     return vertices
 
 
+def articulated_chain_reference(n, length, duration, params):
+    """Return chain_reference with the articulated model's springs and damping law."""
+    from hair_sim.physics.solvers import articulated
+    return chain_reference(n, length, duration, params, springs='relative',
+                           joint_damping_share=articulated.JOINT_DAMPING_SHARE,
+                           air_damping=params.air_damping
+                           + articulated.AIR_DAMPING_SHARE * params.damping)
+
+
 def chain_records(dts, duration):
     """Return the records of scenario 2 (10 segments from horizontal), every integrator/dt."""
     n, length = 10, 0.03
     refs = {'anjyo': chain_reference(n, length, duration, PhysicsParams()),
-            'articulated': chain_reference(n, length, duration, PhysicsParams(),
-                                           springs='relative')}
+            'articulated': articulated_chain_reference(n, length, duration, PhysicsParams())}
     root = np.array([0.0, 0.0, 1.0])
     rest = np.array([root + [0, 0, -length * j] for j in range(n + 1)])[None]
     return _bare_records('chain', rest, np.tile([1.0, 0.0, 0.0], (1, n, 1)), refs, dts,

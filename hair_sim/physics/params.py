@@ -65,9 +65,10 @@ class PhysicsParams:
     root_stiffness_scale: float = 1.0
     # gamma_i / I_i of eq. 1 (1/s). 12/s gives a damping ratio of about 0.12 at the default
     # hinge frequency: hair swings a few times and settles within about 1 s. The
-    # articulated model damps each joint's relative rotation with d = damping times the
-    # inertia of everything beyond the joint about it (the same rate for the swing of the
-    # whole strand as for its last segment).
+    # articulated model spends a fifth of it on joint dampers (d = 0.2 damping times the
+    # inertia of everything beyond the joint about it) and a third on drag against still
+    # air (like air_damping, on top of it): joint dampers alone leave a long strand
+    # creeping for seconds (see solvers/articulated.py).
     damping: float = 12.0
     # A force -air_damping * m * v on each segment's centre, relative to still air (1/s);
     # separate from wind drag.

@@ -168,6 +168,7 @@ class HairSimulator:
         self.root_vel = np.zeros((n_s, 3))
         self.root_acc = np.zeros((n_s, 3))
         self._proj = np.zeros((n_s, n_seg + 1, 3))
+        self._pos_mid = np.zeros((n_s, n_seg + 1, 3))     # where a model takes its forces
         self._spheres = np.zeros_like(self.spheres_head)
         self._sphere_vel = np.zeros((len(self.spheres_head), 3))
         self.stats = np.zeros(F.N_STATS)
@@ -530,11 +531,12 @@ class HairSimulator:
             gravity=self.gravity,
             wind_on=self.wind.active,
             drag_factor=self._drag_factor,
-            air_damping=p.air_damping,
+            air_damping=p.air_damping + self.solver.air_damping_share * p.damping,
             collisions=p.collisions,
             broad_phase=self.broad_phase,
             collision_stiffness=p.collision_stiffness,
-            collision_damping=p.collision_damping,
+            collision_damping=p.collision_damping
+            + self.solver.contact_damping_rate * p.linear_density,
             inter_strip=p.inter_strip,
             n_scalp=self.n_scalp,
         )
@@ -582,6 +584,10 @@ class HairSimulator:
                 bodies.masks[:] = (np.int64(1) << np.int64(len(bodies.spheres))) - 1
         self.solver.velocities(self, self.last_dt)
         strands = self.strands
+        if self.solver.forces_at_mid_step:      # (Stormer-Verlet: see solvers/articulated)
+            np.multiply(self.vel, 0.5 * h, out=self._pos_mid)
+            self._pos_mid += self.pos
+            strands = strands._replace(pos=self._pos_mid)
         forces = self.forces
         F.external_forces(
             strands,

@@ -447,6 +447,9 @@ class AnjyoSolver:
     retries_diverged_steps = False  # MAX_TURN bounds a step's turn; nothing saved per step
     fused = True                    # a whole step is one kernel call (thesis_substep)
     uses_contacts = False        # the contact record (implicit contacts) is not read
+    forces_at_mid_step = False   # eqs. 4-6 take the forces where the step starts
+    air_damping_share = 0.0      # `damping` is eq. 1's gamma / I alone
+    contact_damping_rate = 0.0   # eq. 8's c is collision_damping alone (explicit)
 
     def __init__(self, sim):
         n_s, n_seg = sim.length.shape

@@ -7,11 +7,14 @@ radius), joined to its parent (the head, for the first) by a ball joint at its s
 bending spring k = EI / l acts on the *relative* rotation between neighbouring segments,
 the discrete curvature of the Hencky bar-chain: the torque on the child is -k R e, with
 R_child = R_parent R_rest Exp(e); `root_stiffness_scale` multiplies the first joint's k
-(the follicle). Joints have damping on their relative angular velocity, d = damping times
-the inertia about the joint of everything beyond it at the modeled pose
-(`inertia_beyond`). Twist: the joints are 2-DOF, no spin about a rod relative to its
-parent (`_lock_twist` in the articulated-body pass, the relative spin removed from the
-angular velocities, which moves no vertex). Nothing external twists a rod of zero width,
+(the follicle). `damping` (1/s) is split between the two losses a strand has
+(`JOINT_DAMPING_SHARE`, `AIR_DAMPING_SHARE`): dampers on the joints' relative angular
+velocities, d = share x damping x the inertia about the joint of everything beyond it at
+the modeled pose (`inertia_beyond`), and a drag -share x damping x m v on every segment's
+centre relative to still air (added to `air_damping`). Twist: the joints are 2-DOF, no
+spin about a rod relative to its parent (`_lock_twist` in the articulated-body pass, the
+relative spin removed from the angular velocities, which moves no vertex). Nothing
+external twists a rod of zero width,
 and a thin rod's twist inertia is tiny: with 3-DOF joints (a twist spring, as MuJoCo's ball
 joints have), a joint holding a preload deflection e couples swing into twist through its
 spring's tangent (skew part k [e]x / 2), and that light, stiff twist was flung at
@@ -56,7 +59,11 @@ through the articulated inertias (twist locked) stops that end's motion into the
 (`_stop_inward_motion`: positions alone, the joint springs the guard bent sped the end
 inwards every step and violent head motion diverged). A step that
 would turn a segment by more than MAX_STEP_ROTATION is split by the simulator, which
-recomputes the forces for every substep.
+recomputes the forces for every substep. The simulator evaluates those forces at the
+mid-step configuration, x + (h / 2) v, where Stormer-Verlet takes them (`forces_at_mid_step`):
+taken at the start, a position-dependent force (a contact, an inter-strip spring) lags half
+a step, which pumps energy into a strand at omega h / 2 per radian; at 1/60 s that beat the
+joint dampers and strands resting on the head or on their neighbours shook 1-3 mm for ever.
 
 Rest shape (sag-free): one recursive Newton-Euler pass at the modeled pose (head upright,
 at rest, full distal loads; Hsu et al. 2023, Derouet-Jourdan et al. 2013) gives each
@@ -98,6 +105,21 @@ MAX_PRELOAD = 1.0
 # at least this many times what gravity's negative stiffness at that pose needs
 STABILITY_MARGIN = 1.5
 STABILITY_CHUNK_BYTES = 16 << 20     # the stability check's Hessians, at most, at a time
+# How `damping` is spent. Joint dampers alone cannot make a long strand settle quickly:
+# in the linear modes of a hanging 25-30 cm chain (M, C, K of its Lagrangian) the slowest
+# decays at 1.2/s at best, whatever their scale (too little: it swings on; too much: an
+# overdamped creep), and a strand crept back for 5 s after a shake. Drag against the air
+# (mass proportional) damps what the joints cannot: with a fifth of the rate on the joints
+# and a third as drag (12/s: 2.4/s and 4/s) every such mode decays at >= 4/s.
+JOINT_DAMPING_SHARE = 0.2
+AIR_DAMPING_SHARE = 1.0 / 3.0
+# Contacts are implicit here, so they can stop a segment's motion into a sphere instead of
+# letting it bounce: their damping (eq. 8's c, per metre) gets this rate times the mass per
+# metre on top of collision_damping (200/s: +0.5 N s/m per m for the default material).
+# With less joint damping, the fringe strands of bob_fringe resting on the forehead
+# otherwise kept shaking 1-2 mm (the guard turning them out every step) after violent
+# motion at 1/60 s; with it they sleep within 3 s (measured).
+CONTACT_DAMPING_RATE = 200.0
 
 ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', 'd',
                                        'inertia_axial',
@@ -990,6 +1012,9 @@ class ArticulatedSolver:
     holds_modeled_walls = True      # type-2 springs act only nearer than the modeled pose
     retries_diverged_steps = True   # a step that blows up is taken again, finer
     uses_contacts = True         # contacts are folded into the articulated inertia
+    forces_at_mid_step = True    # Stormer-Verlet: the forces at x + (h / 2) v
+    air_damping_share = AIR_DAMPING_SHARE   # of `damping`, as drag against still air
+    contact_damping_rate = CONTACT_DAMPING_RATE   # 1/s, times the mass per metre
     fused = False                # the shared kernels one by one, then the chain
 
     def __init__(self, sim):
@@ -1011,8 +1036,8 @@ class ArticulatedSolver:
         k = p.bending_stiffness / sim.length
         k[:, 0] *= p.root_stiffness_scale
         self.k = np.ascontiguousarray(k)
-        self.d = np.ascontiguousarray(p.damping * inertia_beyond(self.modeled, sim.length,
-                                                                 sim.mass))
+        self.d = np.ascontiguousarray(JOINT_DAMPING_SHARE * p.damping * inertia_beyond(
+            self.modeled, sim.length, sim.mass))
         self.inertia_axial = np.ascontiguousarray(0.5 * sim.mass * p.bundle_radius ** 2)
         if p.gravity_compensation:
             offset = sag_free_offsets(self.modeled, sim.length, sim.mass, self.k,
@@ -1147,7 +1172,7 @@ class ArticulatedSolver:
         mass = params.linear_density * length
         k = params.bending_stiffness / length
         k[..., 0] *= params.root_stiffness_scale
-        d = params.damping * mass * length ** 2 / 3.0   # the least inertia_beyond gives
+        d = JOINT_DAMPING_SHARE * params.damping * mass * length ** 2 / 3.0  # least beyond
         inertia = mass * length ** 2 / 3.0 + GAMMA * dt * dt * k + dt * d
         beyond = np.cumsum(mass[..., ::-1], axis=-1)[..., ::-1]
         springs = 0.0
@@ -1156,5 +1181,6 @@ class ArticulatedSolver:
                 params.scalp_stiffness
         # (contacts are taken implicitly)
         explicit = (beyond * params.gravity * length + springs * length ** 3) / inertia
-        return explicit_stability_problem(explicit, params.air_damping, dt, margin,
+        air = params.air_damping + AIR_DAMPING_SHARE * params.damping
+        return explicit_stability_problem(explicit, air, dt, margin,
                                           'the articulated model (gravity tension, springs)')
