@@ -88,8 +88,13 @@ def _errors(a, b):
 
 
 # ------------------------------------------------------------------ 1. pendulum
-def pendulum_reference(length, amplitude, duration, params):
-    """Dense exact solution of I th'' = -k th - m g (l/2) sin th - gamma I th' (th from down)."""
+def pendulum_reference(length, amplitude, duration, params, damping_rate=None):
+    """
+    Dense exact solution of I th'' = -k th - m g (l/2) sin th - gamma I th' (th from down).
+
+    gamma is damping_rate, by default params.damping (eq. 1's gamma / I).
+    """
+    gamma = params.damping if damping_rate is None else damping_rate
     from scipy.integrate import solve_ivp
     m = params.linear_density * length
     inertia = m * length ** 2 / 3.0
@@ -98,7 +103,7 @@ def pendulum_reference(length, amplitude, duration, params):
     def rhs(_t, y):
         th, w = y
         return [w, (-k * th - m * params.gravity * length / 2 * math.sin(th)) / inertia
-                - params.damping * w]
+                - gamma * w]
 
     sol = solve_ivp(rhs, (0.0, duration), [amplitude, 0.0], method='DOP853', rtol=1e-10,
                     atol=1e-12, dense_output=True)
@@ -138,14 +143,14 @@ def _bare_records(scenario, rest, start, refs, dts, duration, scored=slice(None)
 def pendulum_records(dts, duration):
     """Return the records of scenario 1 for every integrator and dt."""
     length, amp = 0.03, 0.3
-    ref = pendulum_reference(length, amp, duration, PhysicsParams())
+    refs = {'anjyo': pendulum_reference(length, amp, duration, PhysicsParams()),
+            'articulated': articulated_pendulum_reference(length, amp, duration,
+                                                          PhysicsParams())}
     root = np.array([0.0, 0.0, 1.0])
     start = np.array([[[math.sin(amp), 0.0, -math.cos(amp)]]])
-
-    def tip(times):
-        return ref(times)[:, None]
+    tips = {model: (lambda times, ref=ref: ref(times)[:, None]) for model, ref in refs.items()}
     return _bare_records('pendulum', np.array([[root, root + [0, 0, -length]]]), start,
-                         {'anjyo': tip, 'articulated': tip}, dts, duration, slice(1, 2))
+                         tips, dts, duration, slice(1, 2))
 
 
 # ------------------------------------------------------------------ 2. chain
@@ -204,6 +209,19 @@ def chain_reference(n, length, duration, params, springs='absolute', joint_dampi
         steps = np.stack([np.cos(phi), np.zeros_like(phi), np.sin(phi)], axis=-1) * length
         return np.concatenate([np.zeros((len(times), 1, 3)), np.cumsum(steps, axis=1)], 1)
     return vertices
+
+
+def articulated_pendulum_reference(length, amplitude, duration, params):
+    """
+    Return pendulum_reference with the articulated model's damping law for one rod.
+
+    The joint damper gives JOINT_DAMPING_SHARE x damping x I; the drag AIR_DAMPING_SHARE x
+    damping x m v at the centre gives a torque of that rate times m (l/2)^2 = 3/4 I.
+    """
+    from hair_sim.physics.solvers import articulated
+    air = params.air_damping + articulated.AIR_DAMPING_SHARE * params.damping
+    rate = articulated.JOINT_DAMPING_SHARE * params.damping + 0.75 * air
+    return pendulum_reference(length, amplitude, duration, params, damping_rate=rate)
 
 
 def articulated_chain_reference(n, length, duration, params):

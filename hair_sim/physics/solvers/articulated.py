@@ -121,9 +121,11 @@ AIR_DAMPING_SHARE = 1.0 / 3.0
 # motion at 1/60 s; with it they sleep within 3 s (measured).
 CONTACT_DAMPING_RATE = 200.0
 
+# air: the rate (1/s) of the drag -air m v on every segment's centre that the shared forces
+# apply explicitly at the start of the step; the chain adds its implicit half (see below)
 ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', 'd',
                                        'inertia_axial',
-                                       'offset'])
+                                       'offset', 'air'])
 
 
 # ------------------------------------------------------------------ 3x3 helpers
@@ -574,6 +576,24 @@ def step_chains(state,
             # is taken implicitly as an added mass (GAMMA h^2 k + h c) n n^T there, so
             # every joint up to the root feels it (the implicit damping of the articulated
             # body; cf. the joints' own springs).
+            # Air drag -c v at the centre, c = air m: applied at the start-of-step velocity
+            # by the shared forces; half of it again on the velocity change, as an added
+            # mass (h c / 2) at the centre, makes it -c (v + v+) / 2 (trapezoidal: second
+            # order, and stable at any rate)
+            cw = 0.5 * h * state.air * m
+            if cw > 0.0:
+                rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
+                for a in range(3):
+                    for b in range(3):
+                        J[a, b] += cw * ((rr if a == b else 0.0) - r[a] * r[b])
+                    M[a, a] += cw
+                # B += cw [r] (the skew matrix of r)
+                B[0, 1] -= cw * r[2]
+                B[0, 2] += cw * r[1]
+                B[1, 0] += cw * r[2]
+                B[1, 2] -= cw * r[0]
+                B[2, 0] -= cw * r[1]
+                B[2, 1] += cw * r[0]
             kc = contact[s, i, CONTACT_K]
             cc = contact[s, i, CONTACT_C]
             if kc + cc > 0.0:
@@ -1039,6 +1059,7 @@ class ArticulatedSolver:
         self.d = np.ascontiguousarray(JOINT_DAMPING_SHARE * p.damping * inertia_beyond(
             self.modeled, sim.length, sim.mass))
         self.inertia_axial = np.ascontiguousarray(0.5 * sim.mass * p.bundle_radius ** 2)
+        self.air = float(p.air_damping + AIR_DAMPING_SHARE * p.damping)
         if p.gravity_compensation:
             offset = sag_free_offsets(self.modeled, sim.length, sim.mass, self.k,
                                       [0.0, 0.0, -p.gravity])
@@ -1068,7 +1089,7 @@ class ArticulatedSolver:
         """Return the kernel's view of the arrays, shared and not copied."""
         return ChainState(R=self.R, omega=self.omega, alpha=self.alpha, rest_rel=self.rest_rel,
                           k=self.k, d=self.d, inertia_axial=self.inertia_axial,
-                          offset=self.offset)
+                          offset=self.offset, air=self.air)
 
     def place(self, sim, world_dir):
         """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""
@@ -1164,10 +1185,11 @@ class ArticulatedSolver:
         """
         Return why params would be unstable at dt for these segment lengths, or None.
 
-        The joint springs and contacts are implicit; what stays explicit is gravity's
-        tension (the weight of everything beyond a joint, acting with the segment's lever),
-        the inter-strip springs at the segment's end, and air damping. Each acts
-        against the segment's inertia plus the implicit spring and damper's share.
+        The joint springs, contacts and air drag are implicit (the drag half, which makes
+        it trapezoidal); what stays explicit is gravity's tension (the weight of everything
+        beyond a joint, acting with the segment's lever) and the inter-strip springs at the
+        segment's end. Each acts against the segment's inertia plus the implicit spring and
+        damper's share.
         """
         mass = params.linear_density * length
         k = params.bending_stiffness / length
@@ -1179,8 +1201,8 @@ class ArticulatedSolver:
         if params.inter_strip:
             springs += params.neighbor_stiffness + params.wall_stiffness + \
                 params.scalp_stiffness
-        # (contacts are taken implicitly)
+        # (contacts are taken implicitly; so is half the air drag, which makes it
+        # trapezoidal and stable at any rate)
         explicit = (beyond * params.gravity * length + springs * length ** 3) / inertia
-        air = params.air_damping + AIR_DAMPING_SHARE * params.damping
-        return explicit_stability_problem(explicit, air, dt, margin,
+        return explicit_stability_problem(explicit, 0.0, dt, margin,
                                           'the articulated model (gravity tension, springs)')
