@@ -110,15 +110,16 @@ STABILITY_CHUNK_BYTES = 16 << 20     # the stability check's Hessians, at most, 
 # decays at 1.2/s at best, whatever their scale (too little: it swings on; too much: an
 # overdamped creep), and a strand crept back for 5 s after a shake. Drag against the air
 # (mass proportional) damps what the joints cannot: with a fifth of the rate on the joints
-# and a third as drag (12/s: 2.4/s and 4/s) every such mode decays at >= 4/s.
+# and a third as drag (12/s: 2.4/s and 4/s) the slowest mode of hanging 20-30 cm chains,
+# and of a standing one stiffened to stand (STABILITY_MARGIN), decays at 2.3-2.6/s.
 JOINT_DAMPING_SHARE = 0.2
 AIR_DAMPING_SHARE = 1.0 / 3.0
 # Contacts are implicit here, so they can stop a segment's motion into a sphere instead of
 # letting it bounce: their damping (eq. 8's c, per metre) gets this rate times the mass per
 # metre on top of collision_damping (200/s: +0.5 N s/m per m for the default material).
-# With less joint damping, the fringe strands of bob_fringe resting on the forehead
-# otherwise kept shaking 1-2 mm (the guard turning them out every step) after violent
-# motion at 1/60 s; with it they sleep within 3 s (measured).
+# Without it, after 2 s of violent motion at 1/60 s, bob_fringe and side_swept_long were
+# still moving 8 s later (fringe strands on the forehead shaking 1-2 mm, turned out by the
+# guard every step) and thesis_long slept after 4.7 s; with it 6.9, 2.9 and 2.7 s.
 CONTACT_DAMPING_RATE = 200.0
 
 # air: the rate (1/s) of the drag -air m v on every segment's centre that the shared forces
