@@ -215,11 +215,11 @@ def articulated_pendulum_reference(length, amplitude, duration, params):
     """
     Return pendulum_reference with the articulated model's damping law for one rod.
 
-    The joint damper gives JOINT_DAMPING_SHARE x damping x I; the drag AIR_DAMPING_SHARE x
-    damping x m v at the centre gives a torque of that rate times m (l/2)^2 = 3/4 I.
+    The joint damper gives JOINT_DAMPING_SHARE x damping x I; the drag at the centre, at the
+    model's air_damping_rate, a torque of that rate times m (l/2)^2 = 3/4 I.
     """
     from hair_sim.physics.solvers import articulated
-    air = params.air_damping + articulated.AIR_DAMPING_SHARE * params.damping
+    air = articulated.ArticulatedSolver.air_damping_rate(params)
     rate = articulated.JOINT_DAMPING_SHARE * params.damping + 0.75 * air
     return pendulum_reference(length, amplitude, duration, params, damping_rate=rate)
 
@@ -229,8 +229,7 @@ def articulated_chain_reference(n, length, duration, params):
     from hair_sim.physics.solvers import articulated
     return chain_reference(n, length, duration, params, springs='relative',
                            joint_damping_share=articulated.JOINT_DAMPING_SHARE,
-                           air_damping=params.air_damping
-                           + articulated.AIR_DAMPING_SHARE * params.damping)
+                           air_damping=articulated.ArticulatedSolver.air_damping_rate(params))
 
 
 def chain_records(dts, duration):

@@ -531,7 +531,7 @@ class HairSimulator:
             gravity=self.gravity,
             wind_on=self.wind.active,
             drag_factor=self._drag_factor,
-            air_damping=p.air_damping + self.solver.air_damping_share * p.damping,
+            air_damping=self.solver.air_damping_rate(p),
             collisions=p.collisions,
             broad_phase=self.broad_phase,
             collision_stiffness=p.collision_stiffness,

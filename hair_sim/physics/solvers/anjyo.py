@@ -448,7 +448,6 @@ class AnjyoSolver:
     fused = True                    # a whole step is one kernel call (thesis_substep)
     uses_contacts = False        # the contact record (implicit contacts) is not read
     forces_at_mid_step = False   # eqs. 4-6 take the forces where the step starts
-    air_damping_share = 0.0      # `damping` is eq. 1's gamma / I alone
     contact_damping_rate = 0.0   # eq. 8's c is collision_damping alone (explicit)
 
     def __init__(self, sim):
@@ -547,6 +546,11 @@ class AnjyoSolver:
             EXPLICIT if p.integrator == 'explicit' else IMPLICIT,
             sim.stats,
         )
+
+    @staticmethod
+    def air_damping_rate(params):
+        """Return the drag rate (1/s) against still air: air_damping (damping is eq. 1's)."""
+        return params.air_damping
 
     @staticmethod
     def stability_problem(params, length, dt, margin):

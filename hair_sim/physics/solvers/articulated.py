@@ -1034,7 +1034,6 @@ class ArticulatedSolver:
     retries_diverged_steps = True   # a step that blows up is taken again, finer
     uses_contacts = True         # contacts are folded into the articulated inertia
     forces_at_mid_step = True    # Stormer-Verlet: the forces at x + (h / 2) v
-    air_damping_share = AIR_DAMPING_SHARE   # of `damping`, as drag against still air
     contact_damping_rate = CONTACT_DAMPING_RATE   # 1/s, times the mass per metre
     fused = False                # the shared kernels one by one, then the chain
 
@@ -1060,7 +1059,7 @@ class ArticulatedSolver:
         self.d = np.ascontiguousarray(JOINT_DAMPING_SHARE * p.damping * inertia_beyond(
             self.modeled, sim.length, sim.mass))
         self.inertia_axial = np.ascontiguousarray(0.5 * sim.mass * p.bundle_radius ** 2)
-        self.air = float(p.air_damping + AIR_DAMPING_SHARE * p.damping)
+        self.air = self.air_damping_rate(p)
         if p.gravity_compensation:
             offset = sag_free_offsets(self.modeled, sim.length, sim.mass, self.k,
                                       [0.0, 0.0, -p.gravity])
@@ -1180,6 +1179,11 @@ class ArticulatedSolver:
                 e -= self.offset[s, i]
                 total += 0.5 * self.k[s, i] * float(e @ e)
         return total
+
+    @staticmethod
+    def air_damping_rate(params):
+        """Return the drag rate (1/s) against still air: air_damping and its share of damping."""
+        return float(params.air_damping + AIR_DAMPING_SHARE * params.damping)
 
     @staticmethod
     def stability_problem(params, length, dt, margin):
