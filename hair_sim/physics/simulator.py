@@ -470,25 +470,11 @@ class HairSimulator:
 
         A model may ask for the step to be split (the articulated chain does when a segment
         would turn too far in one step), into at least `substeps`; every substep recomputes
-        the forces. It asks per strand (an array of counts) or for all (an int): strand s
-        then takes its counts[s] substeps of h / counts[s] spread evenly over the n =
-        max(counts) passes, so a whipping strand does not make every strand at rest beside
-        it take its substeps too. Returns n.
+        the forces. Returns the number of substeps taken.
         """
-        counts = self.solver.substeps_for(h, substeps)
-        if np.ndim(counts) == 0:
-            n = int(counts)
-            for k in range(n):
-                self._substep(t - h + (k + 1) * h / n, h / n)
-        else:
-            n = int(counts.max())
-            taken = np.zeros_like(counts)
-            h_strand = np.empty(len(counts))
-            for k in range(n):
-                due = (k + 1) * counts // n            # substeps strand s has by pass k
-                np.copyto(h_strand, np.where(due > taken, h / counts, 0.0))
-                taken = due
-                self._substep(t - h + (k + 1) * h / n, h / n, h_strand)
+        n = max(self.solver.substeps_for(h), substeps)
+        for k in range(n):
+            self._substep(t - h + (k + 1) * h / n, h / n)
         self.counters['substeps'] += n
         self._last_substeps = n
         return n
@@ -533,8 +519,7 @@ class HairSimulator:
         self._constants_of = p
         self._springs_rest3 = self.rest3
 
-    def _substep(self, t, h, h_strand=None):
-        """One pass of the forces and the model; h_strand: each strand's substep if they differ."""
+    def _substep(self, t, h):
         p = self.params
         c = self.counters
         if self._constants_of is not p or self._springs_rest3 is not self.rest3:
@@ -560,8 +545,8 @@ class HairSimulator:
                                                                     settings)
             c['kernel_calls'] += 1
         else:
-            checks, contacts, walls, segments = self._substep_by_kernel(
-                h if h_strand is None else h_strand, head, bodies, settings)
+            checks, contacts, walls, segments = self._substep_by_kernel(h, head, bodies,
+                                                                        settings)
         c['broad_phase_checks'] += checks
         c['contacts'] += contacts
         c['wall_springs'] += walls
@@ -574,11 +559,7 @@ class HairSimulator:
         self.last_dt = h
 
     def _substep_by_kernel(self, h, head, bodies, settings):
-        """
-        Run the shared force kernels one by one, then the model's step (see _substep).
-
-        h: the substep, or each strand's (an array, 0 for a strand that waits this pass).
-        """
+        """Run the shared force kernels one by one, then the model's step (see _substep)."""
         c = self.counters
         attach = self.attachment
         F.root_kinematics(
@@ -604,8 +585,7 @@ class HairSimulator:
         self.solver.velocities(self, self.last_dt)
         strands = self.strands
         if self.solver.forces_at_mid_step:      # (Stormer-Verlet: see solvers/articulated)
-            half = 0.5 * h if np.ndim(h) == 0 else 0.5 * h[:, None, None]
-            np.multiply(self.vel, half, out=self._pos_mid)
+            np.multiply(self.vel, 0.5 * h, out=self._pos_mid)
             self._pos_mid += self.pos
             strands = strands._replace(pos=self._pos_mid)
         forces = self.forces

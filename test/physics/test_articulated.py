@@ -243,29 +243,6 @@ def test_reruns_are_bit_identical():
     assert run().tobytes() == run().tobytes()
 
 
-def test_a_strand_at_rest_does_not_take_a_whipping_strands_substeps():
-    """Substeps are per strand: a whipping strand moves as alone, a still one steps whole."""
-    segments, frames = 10, 30
-    s = np.linspace(0.0, hanging.LENGTH, segments + 1)[:, None]
-    falling = [0.0, 0.0, hanging.ROOT_OFFSET] + s * [1.0, 0.0, 0.0]   # out flat over the top
-    still = [0.0, 0.3, 0.0] + s * [0.0, 0.0, -1.0]           # hanging straight, clear of all
-
-    def run(strands):
-        sim = HairSimulator.from_strands(np.array(strands), hanging.head_model(),
-                                         **hanging.scene_params('articulated'))
-        sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
-        for _ in range(frames):
-            sim.step(1 / 60)
-        return sim
-
-    alone, pair = run([falling]), run([falling, still])
-    assert alone.counters['substeps'] > 3 * frames            # it whips: many substeps
-    np.testing.assert_array_equal(pair.pos[0], alone.pos[0])
-    assert pair.counters['segment_updates'] - alone.counters['segment_updates'] == \
-        segments * frames                                      # one update a frame each
-    np.testing.assert_allclose(pair.pos[1], still, atol=1e-12)
-
-
 @pytest.mark.parametrize('segments', [10, 20])
 @pytest.mark.parametrize('dt', [1 / 60, 1 / 240])
 def test_hanging_scene_drapes_and_stays_outside(dt, segments):

@@ -526,9 +526,9 @@ class AnjyoSolver:
             sim.stats,
         )
 
-    def substeps_for(self, h, at_least=1):
-        """Return at_least (int): the model takes its steps whole (MAX_TURN clamps a turn)."""
-        return max(1, at_least)
+    def substeps_for(self, h):
+        """Return 1: the model takes every step whole (MAX_TURN clamps a step's turn)."""
+        return 1
 
     def step(self, sim, h, head):
         """Advance eqs. 1-6 by h with the forces in sim.forces; return segments updated."""

@@ -472,12 +472,10 @@ def step_chains(state,
                 root_acc,
                 bodies,
                 collide,
-                h_strand,
+                h,
                 stats):
     """
-    Advance each strand's chain by its h_strand (articulated-body algorithm, see the module text).
-
-    A strand whose h_strand is 0 is left as it is (it takes fewer substeps than others).
+    Advance every strand's chain by h (articulated-body algorithm, see the module text).
 
     Reads the shared per-segment forces (world), the head's motion (base of every chain),
     writes the new orientations, angular velocities, vertices and vertex velocities. The
@@ -534,13 +532,8 @@ def step_chains(state,
     rc_imp = np.zeros(3)
     max_rate = 0.0
     guards = 0
-    stepped = 0
     Rh = head.R
     for s in range(n_s):
-        h = h_strand[s]
-        if h <= 0.0:
-            continue
-        stepped += 1
         # ---------------- part of the drift: the configuration at mid-step (Stormer-Verlet).
         # A joint too stiff for the step (b = h^2 k / I >> 1) takes its force at the start
         # instead (symplectic Euler), and its mid-step velocity prediction fades likewise.
@@ -871,7 +864,7 @@ def step_chains(state,
                                 vel)
     stats[MAX_RATE] = max_rate
     stats[GUARD_MOVES] += guards
-    return stepped * n_seg
+    return n_s * n_seg
 
 
 # ------------------------------------------------------------------ set-up (numpy, once)
@@ -1132,30 +1125,22 @@ class ArticulatedSolver:
     def velocities(self, sim, h_prev):
         """sim.vel is exact already (the last step wrote it)."""
 
-    def substeps_for(self, h, at_least=1):
+    def substeps_for(self, h):
         """
-        Return how many substeps of h each strand needs (int array, one per strand).
+        Return how many substeps a step of h needs (the simulator recomputes the forces).
 
         A (sub)step turns no segment by more than MAX_STEP_ROTATION, so a whipping tip
-        (tens of rad/s) costs its strand a few substeps instead of stability; the strands
-        at rest beside it still take the step whole (the simulator interleaves them).
+        (tens of rad/s) costs a few substeps instead of stability.
         """
         d = self.R[..., :, 2]
         swing = self.omega - (self.omega * d).sum(-1, keepdims=True) * d   # twist moves nothing
-        n_s = self.R.shape[0]
-        fastest = np.sqrt((swing * swing).sum(-1)).max(-1) if swing.size else np.zeros(n_s)
-        if not np.all(np.isfinite(fastest)):
-            # a diverged state: the simulator's check reports it
-            return np.full(n_s, max(1, min(MAX_SUBSTEPS, at_least)), dtype=np.int64)
-        n = np.ceil(h * fastest / MAX_STEP_ROTATION)
-        return np.clip(n, max(1, at_least), MAX_SUBSTEPS).astype(np.int64)
+        fastest = float(np.sqrt((swing * swing).sum(-1)).max()) if swing.size else 0.0
+        if not np.isfinite(fastest):
+            return 1                        # a diverged state: the simulator's check reports it
+        return max(1, min(MAX_SUBSTEPS, int(np.ceil(h * fastest / MAX_STEP_ROTATION))))
 
     def step(self, sim, h, head):
-        """
-        Advance the chains with the forces in sim.forces; return segments updated.
-
-        h is the substep of each strand (array; 0: that strand waits this time).
-        """
+        """Advance every chain by h with the forces in sim.forces; return segments updated."""
         return step_chains(
             self.state(),
             sim.strands,
