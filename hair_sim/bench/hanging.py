@@ -207,7 +207,11 @@ def run(quick=False, plots=None):
                                 'wall_s_per_sim_s': cost,
                                 'mean_tip_z': None if bad else float(tips[:, 2].mean()),
                                 'tip_rms_vs_mujoco_m': None if bad or ref is None
-                                else rms(tips, ref)})
+                                else rms(tips, ref),
+                                # the strands near the top start on an unstable balance:
+                                # which side they fall to is chaotic, the median is not
+                                'tip_median_vs_mujoco_m': None if bad or ref is None
+                                else float(np.median(np.linalg.norm(tips - ref, axis=1)))})
     for n_big in ([200] if quick else [200, 1000]):
         if have_mujoco:
             _, cost = run_mujoco(n_big, 20, REFERENCE_DT[20], duration=0.02)
