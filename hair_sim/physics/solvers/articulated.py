@@ -558,8 +558,14 @@ def step_chains(state,
             m = mass[s, i]
             dx, dy, dz = R[s, i, 0, 2], R[s, i, 1, 2], R[s, i, 2, 2]
             r[0], r[1], r[2] = 0.5 * seg * dx, 0.5 * seg * dy, 0.5 * seg * dz
-            # inertia about the joint: (m seg^2 / 3)(1 - d d^T) + I_axial d d^T
-            ip = m * seg * seg / 3.0
+            # Air drag -c v at the centre, c = air m: applied at the start-of-step velocity
+            # by the shared forces; half of it again on the velocity change, as an added
+            # mass cw = h c / 2 at the centre, makes it -c (v + v+) / 2 (trapezoidal: second
+            # order, and stable at any rate). The body's inertia is then that of mass m + cw
+            # with the added part at the centre (its weight and velocity products stay m's).
+            cw = 0.5 * h * state.air * m
+            # inertia about the joint: (m seg^2 / 3 + cw seg^2 / 4)(1 - d d^T) + I_axial d d^T
+            ip = m * seg * seg / 3.0 + 0.25 * cw * seg * seg
             ia = i_ax[s, i]
             J[0, 0] = ip + (ia - ip) * dx * dx
             J[1, 1] = ip + (ia - ip) * dy * dy
@@ -570,31 +576,13 @@ def step_chains(state,
             _skew(r, B)
             for a in range(3):
                 for b in range(3):
-                    B[a, b] *= m
-                    M[a, b] = m if a == b else 0.0
+                    B[a, b] *= m + cw
+                    M[a, b] = m + cw if a == b else 0.0
             # A contact (eqs. 7-10, applied explicitly as a force) is stiff for a light
             # segment: its linearisation, F = -(k, c) n n^T (x, v) at the contact point,
             # is taken implicitly as an added mass (GAMMA h^2 k + h c) n n^T there, so
             # every joint up to the root feels it (the implicit damping of the articulated
             # body; cf. the joints' own springs).
-            # Air drag -c v at the centre, c = air m: applied at the start-of-step velocity
-            # by the shared forces; half of it again on the velocity change, as an added
-            # mass (h c / 2) at the centre, makes it -c (v + v+) / 2 (trapezoidal: second
-            # order, and stable at any rate)
-            cw = 0.5 * h * state.air * m
-            if cw > 0.0:
-                rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
-                for a in range(3):
-                    for b in range(3):
-                        J[a, b] += cw * ((rr if a == b else 0.0) - r[a] * r[b])
-                    M[a, a] += cw
-                # B += cw [r] (the skew matrix of r)
-                B[0, 1] -= cw * r[2]
-                B[0, 2] += cw * r[1]
-                B[1, 0] += cw * r[2]
-                B[1, 2] -= cw * r[0]
-                B[2, 0] -= cw * r[1]
-                B[2, 1] += cw * r[0]
             kc = contact[s, i, CONTACT_K]
             cc = contact[s, i, CONTACT_C]
             if kc + cc > 0.0:
