@@ -166,8 +166,10 @@ def stress_articulated_section(stress):
             'turn a segment more than 0.05 rad, and takes a step that blew up again with four '
             'times the substeps, counted as retried). %d promised case(s) failed; %d of them '
             'only by not sleeping within the 4 s after the abuse (finite, exact lengths, no '
-            'penetration past 1 mm): nothing diverged or entered a sphere.'
-            % (stress['promised_failures'], len(sleep_only)), '',
+            'penetration past 1 mm)%s.'
+            % (stress['promised_failures'], len(sleep_only),
+               ': nothing diverged or entered a sphere' if len(sleep_only) == len(failed)
+               else ''), '',
             table(cases, [('case', 'case'), ('step', 'dt'), ('promised', 'promised'),
                           ('passed', 'passed'), ('retried_steps', 'retried steps'),
                           ('nan_steps', 'NaN'), ('max_penetration_m', 'max pen. (m)'),
