@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 from scipy.linalg import eigh
+from scipy.spatial.transform import Rotation
 from scipy.special import ellipk
 
 from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, load_head, paths
@@ -353,9 +354,10 @@ def test_a_strand_pressed_on_the_head_by_violent_motion_does_not_blow_up():
         sim.set_head_pose(t, *violent(t))
         sim.step(h)                               # raises SimulationDiverged if it blows up
         fastest = max(fastest, float(np.abs(sim.solver.omega).max()))
-    # it was pressed on the head: in contact for a quarter of its substeps (measured 351
-    # before the forces were taken at mid-step, 368 after) and turned out by the guard
-    assert sim.counters['contacts'] > 0.25 * sim.counters['substeps']
+    # it was pressed on the head: in contact for a fifth of its substeps (measured 306 of
+    # 1151 with the joints' frames free to twist, 249 of 1133 with twist-free joints) and
+    # turned out by the guard
+    assert sim.counters['contacts'] > 0.2 * sim.counters['substeps']
     assert sim.counters['guard_moves'] > 25
     assert fastest < 2000.0
 
@@ -596,3 +598,81 @@ def test_the_stability_check_gives_the_same_answer_a_strand_at_a_time(monkeypatc
     assert (whole > 1.0 / articulated.STABILITY_MARGIN).any()   # some strands need it
     monkeypatch.setattr(articulated, 'STABILITY_CHUNK_BYTES', 1)
     assert np.array_equal(articulated.stiffness_to_hold(*args), whole)
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_bend_is_the_minimal_rotation_and_its_torque_the_energy_gradient(seed):
+    """
+    The bend is the minimal rotation z -> v, its torque the energy's gradient.
+
+    The joint's bend is the rotation vector of the minimal rotation (scipy), and the
+    torque -k R q is minus the gradient of k |e - e0|^2 / 2 over turns of the rod.
+    Checked on a frame twisted about its rod, as frames are within a step: the twist
+    changes neither the bend nor the torque.
+    """
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=3)
+    v[2] = abs(v[2]) - 0.3
+    v /= np.linalg.norm(v)
+    e0 = 0.4 * rng.normal(size=3)
+    k = 2.5
+    axis = np.cross([0.0, 0.0, 1.0], v)
+    minimal = Rotation.from_rotvec(axis / np.linalg.norm(axis) * math.acos(v[2]))
+    twisted = np.ascontiguousarray((minimal * Rotation.from_rotvec([0.0, 0.0, 0.7])).as_matrix())
+    bend, _, _ = articulated.bend_vector(twisted)
+    np.testing.assert_allclose(bend, minimal.as_rotvec(), atol=1e-12)
+
+    def energy(u):
+        w = np.array(articulated.bend_vector(np.ascontiguousarray(
+            Rotation.align_vectors([u], [[0.0, 0.0, 1.0]])[0].as_matrix()))[0]) - e0
+        return 0.5 * k * w @ w
+
+    q = np.zeros(3)
+    articulated._bend_deviation(twisted, e0, q)
+    torque = -k * twisted @ q                      # parent (rest) frame, A = I
+    eps = 1e-6
+    for delta in np.eye(3):
+        turn = Rotation.from_rotvec(eps * delta)
+        slope = (energy(turn.apply(v)) - energy(turn.inv().apply(v))) / (2 * eps)
+        assert -torque @ delta == pytest.approx(slope, rel=1e-6, abs=1e-9)
+
+
+def test_joints_stay_twist_free_and_a_strand_rests_where_its_twin_does(head):
+    """
+    After a gale and violent motion, joints are pure bends and the strand rests as its twin.
+
+    A standing strand's joints are pure bends after the abuse, and it comes to rest where
+    the same strand kicked from rest does (gravity decides its shape, not the path it took).
+
+    With the frames free to twist through sequences of bends, the root joint kept 0.66
+    rad of twist as a spring deviation: that strand rested 26 mm from its twin and rang
+    for 4 s (the stress bench's 'poles' case never slept in its window).
+    """
+    from hair_sim.bench.scenarios import violent
+    rest = np.array([[[0.0, 0.0, 0.3 + z] for z in np.linspace(0, 0.2, 6)]])
+    h = 1.0 / 240
+    hold = violent(2.0)
+    shaken = HairSimulator.from_strands(rest, head, model='articulated')
+    shaken.set_wind([0.0, 20.0, 5.0], turbulence=1.0, seed=1)
+    for i in range(int(2.0 / h)):
+        shaken.set_head_pose((i + 1) * h, *violent((i + 1) * h))
+        shaken.step(h)
+    shaken.set_wind([0.0, 0.0, 0.0])
+    kicked = HairSimulator.from_strands(rest, head, model='articulated')
+    kicked.set_head_pose(2.0, *hold)
+    kicked.set_directions([[[0.1, 0.0, 1.0]] * 5])
+    for i in range(int(4.0 / h)):
+        for sim in (shaken, kicked):
+            sim.set_head_pose(2.0 + (i + 1) * h, *hold)
+            sim.step(h)
+    assert shaken.sleeping and kicked.sleeping
+    R_head = shaken.head_pose[0]
+    sol = shaken.solver
+    S = np.zeros((3, 3))
+    for i in range(sol.R.shape[1]):
+        parent = R_head if i == 0 else sol.R[0, i - 1]
+        articulated.joint_rotation(parent, sol.rest_rel[0, i], sol.R[0, i], S)
+        e = np.array(articulated.bend_vector(S)[0])
+        np.testing.assert_allclose(S, Rotation.from_rotvec(e).as_matrix(), atol=1e-9)
+    tips = [sim.positions_in_head_frame()[0, -1] for sim in (shaken, kicked)]
+    assert np.linalg.norm(tips[0] - tips[1]) < 1e-3

@@ -6,19 +6,25 @@ its centre across the rod; about its axis the rod's own 0.5 m r^2 with r the bun
 radius), joined to its parent (the head, for the first) by a ball joint at its start. A
 bending spring k = EI / l acts on the *relative* rotation between neighbouring segments,
 the discrete curvature of the Hencky bar-chain: the torque on the child is -k R e, with
-R_child = R_parent R_rest Exp(e); `root_stiffness_scale` multiplies the first joint's k
-(the follicle). `damping` (1/s) is split between the two losses a strand has
-(`JOINT_DAMPING_SHARE`, `AIR_DAMPING_SHARE`): dampers on the joints' relative angular
-velocities, d = share x damping x the inertia about the joint of everything beyond it at
-the modeled pose (`inertia_beyond`), and a drag -share x damping x m v on every segment's
-centre relative to still air (added to `air_damping`). Twist: the joints are 2-DOF, no
-spin about a rod relative to its parent (`_lock_twist` in the articulated-body pass, the
-relative spin removed from the angular velocities, which moves no vertex). Nothing
-external twists a rod of zero width,
-and a thin rod's twist inertia is tiny: with 3-DOF joints (a twist spring, as MuJoCo's ball
-joints have), a joint holding a preload deflection e couples swing into twist through its
-spring's tangent (skew part k [e]x / 2), and that light, stiff twist was flung at
-thousands of rad/s: violent head motion diverged on every long style, and a preloaded
+R_child = R_parent R_rest Exp(e) and e across the rod (a bend, see Twist below);
+`root_stiffness_scale` multiplies the first joint's k (the follicle). `damping` (1/s) is
+split between the two losses a strand has (`JOINT_DAMPING_SHARE`, `AIR_DAMPING_SHARE`):
+dampers on the joints' relative angular velocities, d = share x damping x the inertia about
+the joint of everything beyond it at the modeled pose (`inertia_beyond`), and a drag -share
+x damping x m v on every segment's centre relative to still air (added to `air_damping`).
+Twist: the joints are 2-DOF, no spin about a rod relative to its parent (`_lock_twist` in
+the articulated-body pass, the relative spin removed from the angular velocities, which
+moves no vertex), and each joint is a pure bend: after every step a rod's frame is turned
+about its own axis so that it is its rest frame under the parent turned by the minimal
+rotation onto the rod (`twist_free_frame`), and the spring acts on that bend
+(`bend_vector`, `_bend_deviation`), a function of the rods' directions alone. Without this
+a sequence of bends twisted the frames (a joint swung round a cone comes back turned about
+its axis) and the spring held the twist as a deviation for ever: strands came to rest off
+their shape and rang on for seconds after violent motion. Nothing external twists a rod of
+zero width, and a thin rod's twist inertia is tiny: with 3-DOF joints (a twist spring, as
+MuJoCo's ball joints have), a joint holding a preload deflection e couples swing into twist
+through its spring's tangent (skew part k [e]x / 2), and that light, stiff twist was flung
+at thousands of rad/s: violent head motion diverged on every long style, and a preloaded
 swing lost 43 % of its energy per 5 s. With 2-DOF joints the first runs 3 s without a
 divergence and the second keeps its energy within 1 % (tested).
 
@@ -76,7 +82,7 @@ is positive definite with STABILITY_MARGIN (`stiffness_to_hold`).
 """
 
 from collections import namedtuple
-from math import acos, cos, sin, sqrt
+from math import atan2, cos, sin, sqrt
 
 from numba import njit
 import numpy as np
@@ -184,36 +190,6 @@ def exp_so3(wx, wy, wz, out):
 
 
 @njit(cache=True)
-def log_so3(Q, out):
-    """Rotation vector of a rotation matrix (the inverse of exp_so3)."""
-    tr = Q[0, 0] + Q[1, 1] + Q[2, 2]
-    c = min(1.0, max(-1.0, 0.5 * (tr - 1.0)))
-    vx, vy, vz = Q[2, 1] - Q[1, 2], Q[0, 2] - Q[2, 0], Q[1, 0] - Q[0, 1]
-    th = acos(c)
-    if th < 1e-6:
-        f = 0.5 + th * th / 12.0
-    elif th < 3.14159 - 1e-3:
-        f = th / (2.0 * sin(th))
-    else:                                    # near pi: the axis from the diagonal
-        ax = sqrt(max(0.0, 0.5 * (Q[0, 0] + 1.0)))
-        ay = sqrt(max(0.0, 0.5 * (Q[1, 1] + 1.0)))
-        az = sqrt(max(0.0, 0.5 * (Q[2, 2] + 1.0)))
-        if ax >= ay and ax >= az:
-            ay = np.copysign(ay, Q[0, 1] + Q[1, 0])
-            az = np.copysign(az, Q[0, 2] + Q[2, 0])
-        elif ay >= az:
-            ax = np.copysign(ax, Q[0, 1] + Q[1, 0])
-            az = np.copysign(az, Q[1, 2] + Q[2, 1])
-        else:
-            ax = np.copysign(ax, Q[0, 2] + Q[2, 0])
-            ay = np.copysign(ay, Q[1, 2] + Q[2, 1])
-        n = sqrt(ax * ax + ay * ay + az * az)
-        out[0], out[1], out[2] = th * ax / n, th * ay / n, th * az / n
-        return
-    out[0], out[1], out[2] = f * vx, f * vy, f * vz
-
-
-@njit(cache=True)
 def _orthonormalize(R):
     """Gram-Schmidt on the columns, z (the rod) first: keep R a rotation under roundoff."""
     zx, zy, zz = R[0, 2], R[1, 2], R[2, 2]
@@ -230,9 +206,56 @@ def _orthonormalize(R):
 
 
 @njit(cache=True)
-def spring_error(Rp, rest_rel, Ri, out, scratch):
-    """Write e with Ri = Rp rest_rel Exp(e): the deviation of the joint from rest (child frame)."""
-    # scratch = rest_rel^T Rp^T Ri
+def twist_free_frame(Rp, rest_rel, R, A):
+    """
+    Turn R about its own rod axis so that the joint from Rp is a pure bend, in place.
+
+    The joints have two degrees of freedom: the child's frame is its rest frame under the
+    parent, A = Rp rest_rel, turned by the minimal rotation that takes A's z to the rod's
+    axis d (about z x d): Rp^T R = rest_rel Exp(e) with e across the rod. The step's
+    velocities have no relative spin, but a sequence of bends still twists a frame (the
+    holonomy of rotations: a joint swung round a cone comes back turned about its axis),
+    and the spring on the whole relative rotation then held that twist as a deviation for
+    ever: after a gale and violent motion a standing strand rested 26 mm from where the
+    same strand kicked from rest came to rest, and rang for 4 s (joint 1 twisted 0.66 rad).
+    This moves no vertex (d is kept); the bending energy becomes a function of the rods'
+    directions alone, as in the Hencky bar-chain. A rod bent back on its rest axis (d = -z)
+    keeps its frame. A is scratch (3x3).
+    """
+    for a in range(3):
+        for b in range(3):
+            A[a, b] = Rp[a, 0] * rest_rel[0, b] + Rp[a, 1] * rest_rel[1, b] + \
+                Rp[a, 2] * rest_rel[2, b]
+    dx, dy, dz = R[0, 2], R[1, 2], R[2, 2]
+    vx = A[0, 0] * dx + A[1, 0] * dy + A[2, 0] * dz        # d in A's frame
+    vy = A[0, 1] * dx + A[1, 1] * dy + A[2, 1] * dz
+    vz = A[0, 2] * dx + A[1, 2] * dy + A[2, 2] * dz
+    c = 1.0 + vz
+    if c < 1e-9:
+        return
+    # minimal rotation z -> v: I + [k] + [k]^2 / (1 + v_z), k = z x v (columns x, y, v)
+    s00, s01, s02 = 1.0 - vx * vx / c, -vx * vy / c, vx
+    s10, s11, s12 = -vx * vy / c, 1.0 - vy * vy / c, vy
+    s20, s21, s22 = -vx, -vy, vz
+    for a in range(3):
+        a0, a1, a2 = A[a, 0], A[a, 1], A[a, 2]
+        R[a, 0] = a0 * s00 + a1 * s10 + a2 * s20
+        R[a, 1] = a0 * s01 + a1 * s11 + a2 * s21
+        R[a, 2] = a0 * s02 + a1 * s12 + a2 * s22
+
+
+@njit(cache=True)
+def twist_free_chains(R, rest_rel, Rh):
+    """twist_free_frame for every joint, root to tip (R: n_strands, n_segments, 3, 3)."""
+    A = np.empty((3, 3))
+    for s in range(R.shape[0]):
+        for i in range(R.shape[1]):
+            twist_free_frame(Rh if i == 0 else R[s, i - 1], rest_rel[s, i], R[s, i], A)
+
+
+@njit(cache=True)
+def joint_rotation(Rp, rest_rel, Ri, out):
+    """Write S = rest_rel^T Rp^T Ri: the joint's rotation from its rest (child from parent)."""
     for a in range(3):
         for b in range(3):
             acc = 0.0
@@ -241,39 +264,66 @@ def spring_error(Rp, rest_rel, Ri, out, scratch):
                 q = Rp[c, 0] * rest_rel[0, a] + Rp[c, 1] * rest_rel[1, a] + \
                     Rp[c, 2] * rest_rel[2, a]
                 acc += q * Ri[c, b]
-            scratch[a, b] = acc
-    log_so3(scratch, out)
+            out[a, b] = acc
+
+
+@njit(cache=True)
+def bend_vector(S):
+    """
+    Return (e, theta, sin theta) of the bend S: e = theta (z x v) / |z x v|, v = S z.
+
+    The rotation vector of the minimal rotation from the rest axis z to the rod's axis v
+    (= log S when S is twist-free): the discrete curvature of the Hencky bar-chain.
+    """
+    vx, vy, vz = S[0, 2], S[1, 2], S[2, 2]
+    st = sqrt(vx * vx + vy * vy)
+    t = atan2(st, vz)
+    f = 1.0 + t * t / 6.0 if t < 1e-3 else t / max(st, 1e-300)
+    return (-f * vy, f * vx, 0.0), t, st
+
+
+@njit(cache=True)
+def spring_error(Rp, rest_rel, Ri, out, scratch):
+    """Write the bend e of the joint between Rp and Ri (see bend_vector); scratch: S."""
+    joint_rotation(Rp, rest_rel, Ri, scratch)
+    e, _, _ = bend_vector(scratch)
+    out[0], out[1], out[2] = e
 
 
 # ------------------------------------------------------------------ the chain step
 @njit(cache=True)
-def _spring_offset(e, e0):
+def _bend_deviation(S, e0, q):
     """
-    Replace e by the spring's generalised deviation J_r(e)^-T (e - e0), in place.
+    Write the bend spring's generalised deviation q (child frame): torque -k R q.
 
-    The spring's energy is k |e - e0|^2 / 2 in the joint's log coordinates; its torque on
-    the child (child frame, right perturbation) is -k J_r(e)^-T (e - e0). Since
-    J_r(e)^-T e = e this is e - J_r(e)^-T e0, with J_r^-T = I - [e]/2 + c [e]^2 and
-    c = 1/t^2 - (1 + cos t) / (2 t sin t), t = |e|. Taking the offset as a plain torque
-    would be a follower load: not conservative, and a large sag-free offset then pumps
-    energy into the chain (measured: a bent, preloaded strand blew up under head motion).
+    S is the joint's rotation from rest (joint_rotation), v = S z the rod's axis in the
+    rest frame, e = f(v_z) g its bend (bend_vector: g = z x v, f = theta / sin theta). The
+    spring's energy is k |e - e0|^2 / 2, a function of v alone (the joints have no twist);
+    a turn delta of the rod moves v by delta x v, so the torque is -v x grad_v E with
+    grad_v E = k (f (w_y, -w_x, 0) + f'(v_z) (g . w) z), w = e - e0, and q = S^T (v x
+    grad_v E) / k. (The gradient over all rotations, J_r(e)^-T (e - e0) with e = log S,
+    counts the frame's twist as a deviation: a sequence of bends twists a frame, and that
+    twist was held for ever. Within a step the frames drift off twist-free, so e is taken
+    from v alone.) A rod folded back onto its rest axis (v = -z) gets no torque.
     """
-    ox, oy, oz = e0[0], e0[1], e0[2]
-    if ox == 0.0 and oy == 0.0 and oz == 0.0:
-        return
-    ex, ey, ez = e[0], e[1], e[2]
-    t2 = ex * ex + ey * ey + ez * ez
-    if t2 < 1e-8:
-        c = 1.0 / 12.0 + t2 / 720.0
+    vx, vy, vz = S[0, 2], S[1, 2], S[2, 2]
+    e, t, st = bend_vector(S)
+    wx, wy = e[0] - e0[0], e[1] - e0[1]
+    if t < 1e-3:
+        f = 1.0 + t * t / 6.0
+        fp = -(1.0 / 3.0 + 2.0 * t * t / 15.0)    # df / dv_z, to O(theta^4)
+    elif st > 1e-12:
+        f = t / st
+        fp = -(st - t * vz) / (st * st * st)
     else:
-        t = sqrt(t2)
-        c = 1.0 / t2 - (1.0 + cos(t)) / (2.0 * t * sin(t))
-    # a = e x e0, b = e x a
-    ax, ay, az = ey * oz - ez * oy, ez * ox - ex * oz, ex * oy - ey * ox
-    bx, by, bz = ey * az - ez * ay, ez * ax - ex * az, ex * ay - ey * ax
-    e[0] = ex - (ox - 0.5 * ax + c * bx)
-    e[1] = ey - (oy - 0.5 * ay + c * by)
-    e[2] = ez - (oz - 0.5 * az + c * bz)
+        q[0] = q[1] = q[2] = 0.0
+        return
+    gw = -vy * wx + vx * wy
+    ax, ay, az = f * wy, -f * wx, fp * gw         # grad_v E / k
+    qx, qy, qz = vy * az - vz * ay, vz * ax - vx * az, vx * ay - vy * ax   # v x grad
+    q[0] = S[0, 0] * qx + S[1, 0] * qy + S[2, 0] * qz
+    q[1] = S[0, 1] * qx + S[1, 1] * qy + S[2, 1] * qz
+    q[2] = S[0, 2] * qx + S[1, 2] * qy + S[2, 2] * qz
 
 
 @njit(cache=True)
@@ -637,8 +687,8 @@ def step_chains(state,
                 pl2 += plin[i + 1, 2]
             # ball joint i: spring and damper on the relative rotation, implicit part c
             Rp = Rh if i == 0 else R[s, i - 1]
-            spring_error(Rp, rest_rel[s, i], R[s, i], e, Q)
-            _spring_offset(e, offset[s, i])
+            joint_rotation(Rp, rest_rel[s, i], R[s, i], Q)
+            _bend_deviation(Q, offset[s, i], e)
             k = kj[s, i]
             dd = dj[s, i]
             # the implicit spring and damper work from the start-of-step velocities
@@ -818,7 +868,9 @@ def step_chains(state,
             for a in range(3):
                 for b in range(3):
                     R[s, i, a, b] = Rnew[a, b]
-            # 2-DOF joints: no spin about the rod relative to its parent (it moves no vertex)
+            # 2-DOF joints: a pure bend from the parent (already placed), no twist
+            twist_free_frame(Rh if i == 0 else R[s, i - 1], rest_rel[s, i], R[s, i], T1)
+            # ... and no spin about the rod relative to its parent (it moves no vertex)
             parent_w = (head.w[0], head.w[1], head.w[2]) if i == 0 else \
                 (omega[s, i - 1, 0], omega[s, i - 1, 1], omega[s, i - 1, 2])
             wx, wy, wz = _without_relative_spin((wx, wy, wz), parent_w,
@@ -1085,6 +1137,7 @@ class ArticulatedSolver:
         # turn from the head's own axes would be ill-defined for a strand hanging down)
         first = sim.head_pose[0] @ self.modeled[:, 0]
         self.R[:] = frames_along(world_dir, first)
+        twist_free_chains(self.R, self.rest_rel, np.ascontiguousarray(sim.head_pose[0]))
         self.hold()
 
     def place_at_rest(self, sim):
