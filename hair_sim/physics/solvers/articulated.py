@@ -217,7 +217,7 @@ def twist_free_frame(Rp, rest_rel, R, A):
     holonomy of rotations: a joint swung round a cone comes back turned about its axis),
     and the spring on the whole relative rotation then held that twist as a deviation for
     ever: after a gale and violent motion a standing strand rested 26 mm from where the
-    same strand kicked from rest came to rest, and rang for 4 s (joint 1 twisted 0.66 rad).
+    same strand kicked from rest came to rest, and rang for 4 s (root joint: 0.66 rad).
     This moves no vertex (d is kept); the bending energy becomes a function of the rods'
     directions alone, as in the Hencky bar-chain. A rod bent back on its rest axis (d = -z)
     keeps its frame. A is scratch (3x3).
