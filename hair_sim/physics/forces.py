@@ -465,15 +465,16 @@ def strip_springs(strands,
 
 
 @njit(cache=True)
-def guard_segment(start, end, seg_len, spheres, mask):
+def guard_segment(start, end, seg_len, spheres, mask, margin=GUARD_MARGIN):
     """
     Position guard: turn the segment p->e (length l) so no vertex ends inside a sphere.
 
     The penalty force of eq. 8 must stay soft for the explicit force term, so a fast
     vertex can still cross a sphere's surface within one step; this moves the end vertex
-    (or the segment's deepest point) radially out to GUARD_MARGIN outside the sphere by
-    turning the segment about its start. Spheres that contain the start are left alone.
-    Returns the new end point and whether anything moved.
+    (or the segment's deepest point) radially out to `margin` outside the sphere by
+    turning the segment about its start (the thesis model: GUARD_MARGIN; the articulated
+    chain: see its GUARD_LIFT). Spheres that contain the start are left alone. Returns the
+    new end point and whether anything moved.
     """
     px, py, pz = start
     ex, ey, ez = end
@@ -498,7 +499,7 @@ def guard_segment(start, end, seg_len, spheres, mask):
                 # the centre, D: their distance): project d onto that cone, exactly.
                 D = sqrt(sx * sx + sy * sy + sz * sz)
                 ux, uy, uz = -sx / D, -sy / D, -sz / D
-                rr = r + GUARD_MARGIN
+                rr = r + margin
                 kappa = (D * D + seg_len * seg_len - rr * rr) / (2.0 * seg_len * D)
                 if kappa > -1.0:
                     kappa = min(kappa, 1.0)

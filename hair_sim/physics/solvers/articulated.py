@@ -127,6 +127,14 @@ AIR_DAMPING_SHARE = 1.0 / 3.0
 # still moving 8 s later (fringe strands on the forehead shaking 1-2 mm, turned out by the
 # guard every step) and thesis_long slept after 4.7 s; with it 6.9, 2.9 and 2.7 s.
 CONTACT_DAMPING_RATE = 200.0
+# m: how far outside a sphere the position guard puts a vertex it turns out. The thesis
+# model's 0.2 mm (GUARD_MARGIN) is a lift: a joint spring pressing a vertex onto the head
+# pushes it back in, the guard lifts it out again, and each lift is work done against the
+# spring. In the chain that work fed limit cycles: after the stress bench's random motion
+# a thesis_long strand rang for ever (its tip 0.6 mm peak to peak at 4.6 Hz: the vertex on
+# the head sank through the margin, was lifted out, sank again); with the vertex put back
+# 1 um out the same strands slept 2.9 s after the head stopped.
+GUARD_LIFT = 1e-6
 
 # air: the rate (1/s) of the drag -air m v on every segment's centre that the shared forces
 # apply explicitly at the start of the step; the chain adds its implicit half (see below)
@@ -834,7 +842,8 @@ def step_chains(state,
             ey = py + seg * Rnew[1, 2]
             ez = pz + seg * Rnew[2, 2]
             if mask != 0:
-                gx, gy, gz, moved = guard_segment((px, py, pz), (ex, ey, ez), seg, spheres, mask)
+                gx, gy, gz, moved = guard_segment((px, py, pz), (ex, ey, ez), seg, spheres, mask,
+                                                  GUARD_LIFT)
                 if moved:
                     # turn the rod minimally onto the guarded direction
                     ox, oy, oz = Rnew[0, 2], Rnew[1, 2], Rnew[2, 2]
