@@ -276,6 +276,15 @@ def joint_rotation(Rp, rest_rel, Ri, out):
 
 
 @njit(cache=True)
+def _bend_angle(vx, vy, vz):
+    """Return (theta, sin theta, f = theta / sin theta) of the bend from z to the unit v."""
+    st = sqrt(vx * vx + vy * vy)
+    t = atan2(st, vz)
+    f = 1.0 + t * t / 6.0 if t < 1e-3 else t / max(st, 1e-300)
+    return t, st, f
+
+
+@njit(cache=True)
 def bend_vector(S):
     """
     Return (e, theta, sin theta) of the bend S: e = theta (z x v) / |z x v|, v = S z.
@@ -283,10 +292,8 @@ def bend_vector(S):
     The rotation vector of the minimal rotation from the rest axis z to the rod's axis v
     (= log S when S is twist-free): the discrete curvature of the Hencky bar-chain.
     """
-    vx, vy, vz = S[0, 2], S[1, 2], S[2, 2]
-    st = sqrt(vx * vx + vy * vy)
-    t = atan2(st, vz)
-    f = 1.0 + t * t / 6.0 if t < 1e-3 else t / max(st, 1e-300)
+    vx, vy = S[0, 2], S[1, 2]
+    t, st, f = _bend_angle(vx, vy, S[2, 2])
     return (-f * vy, f * vx, 0.0), t, st
 
 
@@ -315,13 +322,11 @@ def _bend_deviation(S, e0, q):
     from v alone.) A rod folded back onto its rest axis (v = -z) gets no torque.
     """
     vx, vy, vz = S[0, 2], S[1, 2], S[2, 2]
-    e, t, st = bend_vector(S)
-    wx, wy = e[0] - e0[0], e[1] - e0[1]
+    t, st, f = _bend_angle(vx, vy, vz)
+    wx, wy = -f * vy - e0[0], f * vx - e0[1]      # w = e - e0 (e_z = 0)
     if t < 1e-3:
-        f = 1.0 + t * t / 6.0
         fp = -(1.0 / 3.0 + 2.0 * t * t / 15.0)    # df / dv_z, to O(theta^4)
     elif st > 1e-12:
-        f = t / st
         fp = -(st - t * vz) / (st * st * st)
     else:
         q[0] = q[1] = q[2] = 0.0
