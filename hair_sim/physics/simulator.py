@@ -169,6 +169,7 @@ class HairSimulator:
         self.root_acc = np.zeros((n_s, 3))
         self._proj = np.zeros((n_s, n_seg + 1, 3))
         self._pos_mid = np.zeros((n_s, n_seg + 1, 3))     # where a model takes its forces
+        self._snapshot = None                               # _saved()'s buffers
         self._spheres = np.zeros_like(self.spheres_head)
         self._sphere_vel = np.zeros((len(self.spheres_head), 3))
         self.stats = np.zeros(F.N_STATS)
@@ -489,9 +490,18 @@ class HairSimulator:
             return False
 
     def _saved(self):
-        """Copy what a step changes (strands, model state, stats, last dt)."""
-        return (self.pos.copy(), self.pos_prev.copy(), self.vel.copy(), self.stats.copy(),
-                self.last_dt, self.solver.saved())
+        """
+        Copy what a step changes (strands, model state, stats, last dt).
+
+        Into buffers kept for it (one snapshot at a time): fresh arrays of this size cost
+        page faults on every step.
+        """
+        arrays = (self.pos, self.pos_prev, self.vel, self.stats)
+        if self._snapshot is None or self._snapshot[0].shape != self.pos.shape:
+            self._snapshot = tuple(np.empty_like(a) for a in arrays)
+        for dst, src in zip(self._snapshot, arrays):
+            np.copyto(dst, src)
+        return self._snapshot + (self.last_dt, self.solver.saved())
 
     def _restore(self, saved):
         pos, pos_prev, vel, stats, last_dt, solver_state = saved

@@ -711,3 +711,27 @@ def test_random_head_motion_leaves_no_limit_cycle(dt):
     style = load_hairstyle(paths.shipped_style('thesis_long'))
     record = run_case('random', None, dt, True, style, 'articulated')
     assert record['promised'] and record['slept'] and record['passed'], record
+
+
+def test_substep_count_follows_the_fastest_swing_across_a_rod():
+    """substeps_for: ceil(h |w_perp| / MAX_STEP_ROTATION) of the fastest rod, numpy-checked."""
+    from hair_sim.physics.solvers.articulated import MAX_STEP_ROTATION, MAX_SUBSTEPS
+    rng = np.random.default_rng(3)
+    sim = HairSimulator.from_strands(
+        np.array([[[0.0, 0.0, 0.5 - 0.03 * j] for j in range(7)]] * 4),
+        load_head(paths.shipped_head('default_adult')), model='articulated')
+    solver = sim.solver
+    solver.R[:] = Rotation.random(solver.R.shape[0] * solver.R.shape[1],
+                                  random_state=5).as_matrix().reshape(solver.R.shape)
+    for scale in (0.1, 3.0, 40.0, 1e5):
+        solver.omega[:] = scale * rng.normal(size=solver.omega.shape)
+        d = solver.R[..., :, 2]
+        w = solver.omega
+        swing = np.linalg.norm(w - (w * d).sum(-1, keepdims=True) * d, axis=-1).max()
+        want = max(1, min(MAX_SUBSTEPS, int(np.ceil(DEFAULT_DT * swing / MAX_STEP_ROTATION))))
+        assert solver.substeps_for(DEFAULT_DT) == want
+    # spin about a rod moves nothing and takes no substeps
+    solver.omega[:] = 1e4 * d
+    assert solver.substeps_for(DEFAULT_DT) == 1
+    solver.omega[1, 2, 0] = np.nan                 # a diverged state: the caller reports it
+    assert solver.substeps_for(DEFAULT_DT) == 1

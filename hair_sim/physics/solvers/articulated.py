@@ -526,6 +526,28 @@ def _stop_inward_motion(s,
 
 
 @njit(cache=True)
+def fastest_swing(R, omega):
+    """
+    Return the fastest swing (rad/s) of any rod: its angular velocity across its axis.
+
+    Spin about a rod moves nothing. A NaN anywhere is returned as NaN (a diverged state).
+    """
+    top = 0.0
+    for s in range(R.shape[0]):
+        for i in range(R.shape[1]):
+            dx, dy, dz = R[s, i, 0, 2], R[s, i, 1, 2], R[s, i, 2, 2]
+            wx, wy, wz = omega[s, i, 0], omega[s, i, 1], omega[s, i, 2]
+            wd = wx * dx + wy * dy + wz * dz
+            sx, sy, sz = wx - wd * dx, wy - wd * dy, wz - wd * dz
+            sw = sx * sx + sy * sy + sz * sz
+            if sw != sw:
+                return np.nan
+            if sw > top:
+                top = sw
+    return sqrt(top)
+
+
+@njit(cache=True)
 def step_chains(state,
                 strands,
                 forces,
@@ -1096,6 +1118,7 @@ class ArticulatedSolver:
         self.R = np.zeros((n_s, n_seg, 3, 3))
         self.omega = np.zeros((n_s, n_seg, 3))
         self.alpha = np.zeros((n_s, n_seg, 3))
+        self._snapshot = None           # saved()'s buffers
         # the modeled frames, twist-free from the head frame (head upright)
         self.modeled = frames_along(sim.modeled_dir, np.broadcast_to(np.eye(3), (n_s, 3, 3)))
         # each joint's rest: the modeled child frame seen from the modeled parent frame
@@ -1170,8 +1193,18 @@ class ArticulatedSolver:
         self.hold()
 
     def saved(self):
-        """Return a copy of the state a step changes (see HairSimulator.step's retry)."""
-        return self.R.copy(), self.omega.copy(), self.alpha.copy()
+        """
+        Return a copy of the state a step changes (see HairSimulator.step's retry).
+
+        The copy goes into buffers kept for it (one snapshot at a time): fresh arrays of
+        this size cost page faults on every step.
+        """
+        if self._snapshot is None or self._snapshot[0].shape != self.R.shape:
+            self._snapshot = (np.empty_like(self.R), np.empty_like(self.omega),
+                              np.empty_like(self.alpha))
+        for dst, src in zip(self._snapshot, (self.R, self.omega, self.alpha)):
+            np.copyto(dst, src)
+        return self._snapshot
 
     def restore(self, saved):
         """Put back a state from saved(), in place."""
@@ -1187,9 +1220,7 @@ class ArticulatedSolver:
         A (sub)step turns no segment by more than MAX_STEP_ROTATION, so a whipping tip
         (tens of rad/s) costs a few substeps instead of stability.
         """
-        d = self.R[..., :, 2]
-        swing = self.omega - (self.omega * d).sum(-1, keepdims=True) * d   # twist moves nothing
-        fastest = float(np.sqrt((swing * swing).sum(-1)).max()) if swing.size else 0.0
+        fastest = fastest_swing(self.R, self.omega)
         if not np.isfinite(fastest):
             return 1                        # a diverged state: the simulator's check reports it
         return max(1, min(MAX_SUBSTEPS, int(np.ceil(h * fastest / MAX_STEP_ROTATION))))
