@@ -10,7 +10,7 @@ STAMP_DEPS := $(VENV)/.stamp-deps
 STAMP_MSGS := $(VENV)/.stamp-msgs
 STAMP_PKG := $(VENV)/.stamp-pkg
 
-.PHONY: setup test demo lint clean
+.PHONY: setup test demo lint clean clean-cache
 
 setup: $(STAMP_DEPS) $(STAMP_MSGS) $(STAMP_PKG)
 
@@ -46,5 +46,10 @@ demo: setup
 lint: setup
 	$(PY) -m pytest test/test_flake8.py test/test_pep257.py
 
-clean:
+# numba's cache=True keys each kernel on its own file: a kernel in one file that calls one
+# edited in another keeps its stale machine code until the caches go
+clean-cache:
+	find hair_sim \( -name '*.nbi' -o -name '*.nbc' \) -delete
+
+clean: clean-cache
 	rm -rf build $(VENV)

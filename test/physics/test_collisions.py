@@ -109,3 +109,37 @@ def test_inter_strip_springs_reduce_wall_penetration(long_style):
         results[on] = acc[0]
     assert results[False] > 0.0
     assert results[True] < 0.7 * results[False], results
+
+
+@pytest.mark.parametrize('margin', [1e-6, forces.GUARD_MARGIN])
+def test_guard_puts_the_end_out_when_two_spheres_pull_against_each_other(margin):
+    """
+    A long tip segment with its end in one scalp sphere and its chord dipping into another.
+
+    Taken from the articulated model's gale (thesis_long, 1/240 s, t = 1.254 s): pushing the
+    end out of sphere 1 dipped the chord into sphere 4 and lifting the chord pushed the end
+    back in; after the sweeps ran out the tip was 3.3 um inside sphere 1. The end must
+    come out of every sphere, the segment keep its length, and the chord dip no deeper than
+    the guard's allowance.
+    """
+    start = np.array([-0.00918315745226566, 0.04302525658271666, -0.06286480074315245])
+    end = np.array([-0.03590961562861224, 0.00692191057125079, -0.03810259159956156])
+    seg = 0.05129251564845079
+    spheres = np.array([
+        [0.03714748937857184, -0.01260965086141392, 0.01024844809648068, 0.075],
+        [0.00609560117439985, 0.00854988033429361, 0.02396174378108854, 0.075],
+        [0.02991536202702248, -0.01496229058501381, -0.04625076800694779, 0.062],
+        [0.01230545023559999, -0.00825757865843007, -0.08188695529851764, 0.045],
+        [-0.03075881051373536, 0.01645425174850773, -0.1008552152095374, 0.05],
+        [-0.05135144916258685, 0.0225439075391882, -0.15688073908775615, 0.056]])
+    assert (np.linalg.norm(end - spheres[:, :3], axis=1) - spheres[:, 3]).min() < 0.0
+    x, y, z, moved = forces.guard_segment(tuple(start), tuple(end), seg, spheres,
+                                          np.int64(63), margin)
+    out = np.array([x, y, z])
+    assert moved
+    clearance = np.linalg.norm(out - spheres[:, :3], axis=1) - spheres[:, 3]
+    assert clearance.min() > 0.0, clearance.min()
+    assert abs(np.linalg.norm(out - start) - seg) < 1e-12
+    chord = start + np.linspace(0.0, 1.0, 2001)[:, None] * (out - start)
+    dip = -(np.linalg.norm(chord[:, None] - spheres[None, :, :3], axis=2) - spheres[:, 3]).min()
+    assert dip <= forces.SEGMENT_TOLERANCE + 1e-6, dip
