@@ -142,7 +142,13 @@ def hanging_section(rows):
             'model splits a frame into substeps so that no segment turns more than 0.05 rad '
             'in one, and every strand takes the count of the fastest: per-strand counts '
             'were measured 3.2 times cheaper here, but under the stress bench a strand '
-            'whose count was set at the start of a frame then blew up within it.', '']
+            'whose count was set at the start of a frame then blew up within it. Refining '
+            'a strand that sped up within the frame (power-of-two counts on a shared grid) '
+            'ran 1.6 times cheaper here, but a strand whose step size changes by a factor '
+            'of two from frame to frame pumps its stiff modes: without hysteresis, zigzag '
+            'modes rang at 15 rad/s to the end of this scene, and with it two undamped '
+            'strands joined by springs still gained 5.3 % of their peak kinetic energy '
+            '(1.7 % with the shared count; the test allows 5 %).', '']
 
 
 def culling_savings(skip):
