@@ -479,16 +479,14 @@ def guard_segment(start, end, seg_len, spheres, mask, margin=GUARD_MARGIN):
     px, py, pz = start
     ex, ey, ez = end
     moved = False
-    changed = False
     for sweep in range(2 * GUARD_PASSES):
         # A segment can be caught between two constraints that undo each other: its end
         # out of one sphere, its chord out of another it starts near. Measured (articulated
         # gale): after GUARD_PASSES sweeps a tip was still 0.04 mm inside a scalp sphere.
         # The end outside is the promise and the chord's allowance a tolerance, so when the
-        # sweeps have not settled, the rest move the end alone.
+        # sweeps have not settled (a sweep that changes nothing ends the loop), the rest
+        # move the end alone.
         ends_only = sweep >= GUARD_PASSES
-        if ends_only and not changed:
-            break
         changed = False
         for kk in range(spheres.shape[0]):
             if not (mask >> np.int64(kk)) & np.int64(1):

@@ -489,25 +489,28 @@ class HairSimulator:
         except (ZeroDivisionError, FloatingPointError, OverflowError):
             return False
 
+    def _step_state(self):
+        """Return the arrays a step changes: strands, stats and the model's own state."""
+        return (self.pos, self.pos_prev, self.vel, self.stats) + self.solver.step_state()
+
     def _saved(self):
         """
-        Copy what a step changes (strands, model state, stats, last dt).
+        Copy what a step changes into buffers kept for it; return them and the last dt.
 
-        Into buffers kept for it (one snapshot at a time): fresh arrays of this size cost
-        page faults on every step.
+        One snapshot at a time: fresh arrays of this size cost page faults on every step.
         """
-        arrays = (self.pos, self.pos_prev, self.vel, self.stats)
-        if self._snapshot is None or self._snapshot[0].shape != self.pos.shape:
+        arrays = self._step_state()
+        if self._snapshot is None or [b.shape for b in self._snapshot] != \
+                [a.shape for a in arrays]:
             self._snapshot = tuple(np.empty_like(a) for a in arrays)
         for dst, src in zip(self._snapshot, arrays):
             np.copyto(dst, src)
-        return self._snapshot + (self.last_dt, self.solver.saved())
+        return self._snapshot, self.last_dt
 
     def _restore(self, saved):
-        pos, pos_prev, vel, stats, last_dt, solver_state = saved
-        self.pos[:], self.pos_prev[:], self.vel[:], self.stats[:] = pos, pos_prev, vel, stats
-        self.last_dt = last_dt
-        self.solver.restore(solver_state)
+        buffers, self.last_dt = saved
+        for dst, src in zip(self._step_state(), buffers):
+            np.copyto(dst, src)
 
     def _cache_constants(self):
         """Build the kernels' constant bundles again (the parameters or rest lengths changed)."""

@@ -735,3 +735,49 @@ def test_substep_count_follows_the_fastest_swing_across_a_rod():
     assert solver.substeps_for(DEFAULT_DT) == 1
     solver.omega[1, 2, 0] = np.nan                 # a diverged state: the caller reports it
     assert solver.substeps_for(DEFAULT_DT) == 1
+
+
+def test_a_step_that_blows_up_is_taken_again_from_where_it_started():
+    """
+    The retry: a step whose state comes out non-finite is put back and taken again finer.
+
+    A step is spoiled after it ran (NaN in the tips and the angular velocities); the
+    simulator must restore every array the step changed and take it again with
+    RETRY_SUBSTEP_FACTOR times the substeps, which must give exactly what a twin gets
+    taking that step with those substeps in the first place.
+    """
+    from hair_sim.bench.scenarios import violent
+    from hair_sim.physics.simulator import RETRY_SUBSTEP_FACTOR
+    style = load_hairstyle(paths.shipped_style('thesis_short'))
+    sims = [HairSimulator(style, model='articulated') for _ in range(2)]
+    h, t = 1 / 60, 0.0
+    for _ in range(30):
+        t += h
+        for sim in sims:
+            sim.set_head_pose(t, *violent(t))
+            sim.step(h)
+    spoiled, twin = sims
+    real_step = spoiled.solver.step
+    calls = []
+
+    def spoil_first(sim, hh, head, *rest):
+        out = real_step(sim, hh, head, *rest)
+        if not calls:
+            sim.pos[:, -1] = np.nan
+            spoiled.solver.omega[:] = np.nan
+        calls.append(hh)
+        return out
+
+    spoiled.solver.step = spoil_first
+    n = twin.solver.substeps_for(h)
+    twin.solver.substeps_for = lambda hh: RETRY_SUBSTEP_FACTOR * n
+    t += h
+    for sim in sims:
+        sim.set_head_pose(t, *violent(t))
+        sim.step(h)
+    assert spoiled.counters['retried_steps'] == 1
+    assert len(calls) == n + RETRY_SUBSTEP_FACTOR * n        # the spoiled try, then the retry
+    assert np.array_equal(spoiled.pos, twin.pos)
+    assert np.array_equal(spoiled.vel, twin.vel)
+    for a, b in zip(spoiled.solver.step_state(), twin.solver.step_state()):
+        assert np.array_equal(a, b)

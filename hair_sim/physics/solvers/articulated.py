@@ -1118,7 +1118,6 @@ class ArticulatedSolver:
         self.R = np.zeros((n_s, n_seg, 3, 3))
         self.omega = np.zeros((n_s, n_seg, 3))
         self.alpha = np.zeros((n_s, n_seg, 3))
-        self._snapshot = None           # saved()'s buffers
         # the modeled frames, twist-free from the head frame (head upright)
         self.modeled = frames_along(sim.modeled_dir, np.broadcast_to(np.eye(3), (n_s, 3, 3)))
         # each joint's rest: the modeled child frame seen from the modeled parent frame
@@ -1192,23 +1191,9 @@ class ArticulatedSolver:
         self.R[:] = dR @ self.R
         self.hold()
 
-    def saved(self):
-        """
-        Return a copy of the state a step changes (see HairSimulator.step's retry).
-
-        The copy goes into buffers kept for it (one snapshot at a time): fresh arrays of
-        this size cost page faults on every step.
-        """
-        if self._snapshot is None or self._snapshot[0].shape != self.R.shape:
-            self._snapshot = (np.empty_like(self.R), np.empty_like(self.omega),
-                              np.empty_like(self.alpha))
-        for dst, src in zip(self._snapshot, (self.R, self.omega, self.alpha)):
-            np.copyto(dst, src)
-        return self._snapshot
-
-    def restore(self, saved):
-        """Put back a state from saved(), in place."""
-        self.R[:], self.omega[:], self.alpha[:] = saved
+    def step_state(self):
+        """Return the arrays a step changes (the simulator copies them for its retry)."""
+        return self.R, self.omega, self.alpha
 
     def velocities(self, sim, h_prev):
         """sim.vel is exact already (the last step wrote it)."""
