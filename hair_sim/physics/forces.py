@@ -48,7 +48,15 @@ Bodies = namedtuple('Bodies', ['spheres', 'sphere_vel', 'masks'])
 # the contact's normal and its lever along the segment (0..1); a model may treat them
 # implicitly (the articulated chain does)
 Forces = namedtuple('Forces', ['f_dist', 'f_end', 'contact'])
+# The contact record of each segment, for a model that takes contacts implicitly: up to
+# CONTACT_SLOTS contacts (a vertex in a crease between two spheres and the segment's
+# chord on a third), each as CONTACT_FIELDS numbers. A contact left out of the record keeps
+# its damping explicit, and that is unstable for a light segment (h c / m is about 4 at
+# 1/60 s): with one slot, a tip touching one sphere with its end and another with its
+# chord was flung at 10 rad/s from 2 in one step.
 CONTACT_K, CONTACT_C, CONTACT_NX, CONTACT_NY, CONTACT_NZ, CONTACT_LEVER = range(6)
+CONTACT_FIELDS = 6
+CONTACT_SLOTS = 3
 WindField = namedtuple('WindField', ['velocity', 'amplitude', 'mode_dir', 'mode_k', 'mode_w',
                                      'mode_phase'])
 # wall_rest: per pair, vertex and side, the distance within which a type-2 spring acts
@@ -236,15 +244,30 @@ def _contact_weight(d, r):
 
 @njit(cache=True)
 def _record_contact(contact, s, i, k, c, normal, lever):
-    """Keep the stiffest contact of segment i (its normal and lever) for an implicit model."""
+    """
+    Record a contact of segment i (stiffness, damping, normal, lever) for an implicit model.
+
+    Into a free slot, or else over the slot with the weakest contact if this one is stiffer.
+    """
     nx, ny, nz = normal
-    if k + c > contact[s, i, CONTACT_K] + contact[s, i, CONTACT_C]:
-        contact[s, i, CONTACT_K] = k
-        contact[s, i, CONTACT_C] = c
-        contact[s, i, CONTACT_NX] = nx
-        contact[s, i, CONTACT_NY] = ny
-        contact[s, i, CONTACT_NZ] = nz
-        contact[s, i, CONTACT_LEVER] = lever
+    weakest = 0
+    least = np.inf
+    for q in range(CONTACT_SLOTS):
+        slot = q * CONTACT_FIELDS
+        held = contact[s, i, slot + CONTACT_K] + contact[s, i, slot + CONTACT_C]
+        if held < least:
+            least = held
+            weakest = q
+        if held == 0.0:
+            break
+    if k + c > least:
+        slot = weakest * CONTACT_FIELDS
+        contact[s, i, slot + CONTACT_K] = k
+        contact[s, i, slot + CONTACT_C] = c
+        contact[s, i, slot + CONTACT_NX] = nx
+        contact[s, i, slot + CONTACT_NY] = ny
+        contact[s, i, slot + CONTACT_NZ] = nz
+        contact[s, i, slot + CONTACT_LEVER] = lever
 
 
 @njit(cache=True)
@@ -274,8 +297,9 @@ def reaction_constraint_forces(strands,
     contacts = 0
     for s in range(n_s):
         for i in range(n_seg):
-            contact[s, i, CONTACT_K] = 0.0
-            contact[s, i, CONTACT_C] = 0.0
+            for q in range(CONTACT_SLOTS):
+                contact[s, i, q * CONTACT_FIELDS + CONTACT_K] = 0.0
+                contact[s, i, q * CONTACT_FIELDS + CONTACT_C] = 0.0
     for s in range(n_s):
         mask = masks[s]
         if mask == 0:

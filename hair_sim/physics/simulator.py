@@ -162,7 +162,7 @@ class HairSimulator:
         self.vel = np.zeros_like(self.pos)
         self.f_dist = np.zeros((n_s, n_seg, 3))
         self.f_end = np.zeros((n_s, n_seg, 3))
-        self.contact = np.zeros((n_s, n_seg, 6))
+        self.contact = np.zeros((n_s, n_seg, F.CONTACT_SLOTS * F.CONTACT_FIELDS))
         self.masks = np.zeros(n_s, dtype=np.int64)
         self.roots = np.zeros((n_s, 3))
         self.root_vel = np.zeros((n_s, 3))
@@ -615,8 +615,11 @@ class HairSimulator:
             forces,
         )
         c['kernel_calls'] += 1
-        if self.solver.uses_contacts:
-            self.contact[:, :, :2] = 0.0
+        if self.solver.uses_contacts and not settings.collisions:   # (else the kernel does)
+            slots = self.contact.reshape(self.contact.shape[:2] + (F.CONTACT_SLOTS,
+                                                                   F.CONTACT_FIELDS))
+            slots[..., F.CONTACT_K] = 0.0
+            slots[..., F.CONTACT_C] = 0.0
         if settings.collisions:
             contacts = F.reaction_constraint_forces(
                 strands,

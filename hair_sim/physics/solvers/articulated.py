@@ -87,8 +87,9 @@ from math import atan2, cos, sin, sqrt
 from numba import njit
 import numpy as np
 
-from hair_sim.physics.forces import (CONTACT_C, CONTACT_K, CONTACT_LEVER, CONTACT_NX,
-                                     CONTACT_NY, CONTACT_NZ, explicit_stability_problem,
+from hair_sim.physics.forces import (CONTACT_C, CONTACT_FIELDS, CONTACT_K, CONTACT_LEVER,
+                                     CONTACT_NX, CONTACT_NY, CONTACT_NZ, CONTACT_SLOTS,
+                                     explicit_stability_problem,
                                      GUARD_MOVES, guard_segment, MAX_RATE)
 
 # weight of the implicit spring increment: >= 1/4 is stable for a still base; a stiff root
@@ -668,12 +669,15 @@ def step_chains(state,
             # is taken implicitly as an added mass (GAMMA h^2 k + h c) n n^T there, so
             # every joint up to the root feels it (the implicit damping of the articulated
             # body; cf. the joints' own springs).
-            kc = contact[s, i, CONTACT_K]
-            cc = contact[s, i, CONTACT_C]
-            if kc + cc > 0.0:
-                lv = contact[s, i, CONTACT_LEVER] * seg
-                nrm[0], nrm[1], nrm[2] = contact[s, i, CONTACT_NX], contact[s, i, CONTACT_NY], \
-                    contact[s, i, CONTACT_NZ]
+            for q in range(CONTACT_SLOTS):                # every contact the segment has
+                slot = q * CONTACT_FIELDS
+                kc = contact[s, i, slot + CONTACT_K]
+                cc = contact[s, i, slot + CONTACT_C]
+                if kc + cc <= 0.0:
+                    break
+                lv = contact[s, i, slot + CONTACT_LEVER] * seg
+                nrm[0], nrm[1], nrm[2] = contact[s, i, slot + CONTACT_NX], \
+                    contact[s, i, slot + CONTACT_NY], contact[s, i, slot + CONTACT_NZ]
                 cw = GAMMA * h * h * kc + h * cc
                 rc[0], rc[1], rc[2] = lv * dx, lv * dy, lv * dz
                 _cross(rc, nrm, t4)                      # r x n
