@@ -59,8 +59,9 @@ drift before the kick fades from 1/2 to 0 as b grows). The velocity-product term
 angular velocities predicted at mid-step from the last accelerations. Gravity and the
 inter-strip springs stay explicit: `stability_problem` says when a setting needs a smaller
 step. Contacts (eqs. 7-10, shared with the thesis model) act as forces whose stiffness and
-damping are also folded into the articulated inertia, as an added mass at the contact
-point; the position guard then turns a rod out of a sphere, and an inelastic impulse
+damping are also folded into the articulated inertia, as an added mass at each contact
+point (every contact of a segment: one left explicit has h c / m of about 4 at 1/60 s and
+flung tips away); the position guard then turns a rod out of a sphere, and an inelastic impulse
 through the articulated inertias (twist locked) stops that end's motion into the sphere
 (`_stop_inward_motion`: positions alone, the joint springs the guard bent sped the end
 inwards every step and violent head motion diverged). A step that
