@@ -68,7 +68,8 @@ def scene_params(model):
                 hair_density=FIBRE_DENSITY, youngs_modulus=FIBRE_MODULUS, stiffness_scale=1.0,
                 root_stiffness_scale=CLAMP, damping=0.0, air_damping=AIR_DAMPING,
                 gravity=GRAVITY, gravity_compensation=False, inter_strip=False,
-                collisions=True, sleep_tolerance=0.0, drag_coefficient=0.0)
+                collisions=True, sleep_tolerance=0.0, drag_coefficient=0.0,
+                contact_friction=0.0)             # the scene: frictionless head contact
 
 
 def run_hair_sim(model, n_strands, n_segments, dt, duration=DURATION):

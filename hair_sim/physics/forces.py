@@ -54,8 +54,9 @@ Forces = namedtuple('Forces', ['f_dist', 'f_end', 'contact'])
 # its damping explicit, and that is unstable for a light segment (h c / m is about 4 at
 # 1/60 s): with one slot, a tip touching one sphere with its end and another with its
 # chord was flung at 10 rad/s from 2 in one step.
-CONTACT_K, CONTACT_C, CONTACT_NX, CONTACT_NY, CONTACT_NZ, CONTACT_LEVER = range(6)
-CONTACT_FIELDS = 6
+(CONTACT_K, CONTACT_C, CONTACT_NX, CONTACT_NY, CONTACT_NZ, CONTACT_LEVER, CONTACT_SPHERE,
+ CONTACT_LOAD, CONTACT_LOAD_MID) = range(9)
+CONTACT_FIELDS = 9
 CONTACT_SLOTS = 3
 WindField = namedtuple('WindField', ['velocity', 'amplitude', 'mode_dir', 'mode_k', 'mode_w',
                                      'mode_phase'])
@@ -223,12 +224,18 @@ def external_forces(strands,
 
 @njit(cache=True)
 def _remove_inward(f, nx, ny, nz, w):
-    """Eq. 7: drop the fraction w of the component of force f (in place) along -N."""
+    """
+    Eq. 7: drop the fraction w of the component of force f (in place) along -N.
+
+    Returns the force dropped (N, >= 0): what the surface bears of f.
+    """
     d = f[0] * nx + f[1] * ny + f[2] * nz
     if d < 0.0:
         f[0] -= w * d * nx
         f[1] -= w * d * ny
         f[2] -= w * d * nz
+        return -w * d
+    return 0.0
 
 
 @njit(cache=True)
@@ -243,9 +250,13 @@ def _contact_weight(d, r):
 
 
 @njit(cache=True)
-def _record_contact(contact, s, i, k, c, normal, lever):
+def _record_contact(contact, s, i, k, c, normal, lever, sphere, load):
     """
-    Record a contact of segment i (stiffness, damping, normal, lever) for an implicit model.
+    Record a contact of segment i for an implicit model.
+
+    Its stiffness, damping, normal, lever, sphere, and load: the normal force the surface
+    bears, (at the point, at the segment's middle); eq. 7 drops a vertex's inward
+    distributed force, which acts at the middle.
 
     Into a free slot, or else over the slot with the weakest contact if this one is stiffer.
     """
@@ -268,6 +279,9 @@ def _record_contact(contact, s, i, k, c, normal, lever):
         contact[s, i, slot + CONTACT_NY] = ny
         contact[s, i, slot + CONTACT_NZ] = nz
         contact[s, i, slot + CONTACT_LEVER] = lever
+        contact[s, i, slot + CONTACT_SPHERE] = sphere
+        contact[s, i, slot + CONTACT_LOAD] = load[0]
+        contact[s, i, slot + CONTACT_LOAD_MID] = load[1]
 
 
 @njit(cache=True)
@@ -324,14 +338,14 @@ def reaction_constraint_forces(strands,
                     vy = vel[s, i + 1, 1] - sphere_vel[kk, 1]
                     vz = vel[s, i + 1, 2] - sphere_vel[kk, 2]
                     w = _contact_weight(d, r)
-                    _remove_inward(f_dist[s, i], nx, ny, nz, w)
-                    _remove_inward(f_end[s, i], nx, ny, nz, w)
+                    load_mid = _remove_inward(f_dist[s, i], nx, ny, nz, w)
+                    load = _remove_inward(f_end[s, i], nx, ny, nz, w) + k * max(r - d, 0.0)
                     mag = k * max(r - d, 0.0) - w * c * (vx * nx + vy * ny + vz * nz)  # eq. 8
                     f_end[s, i, 0] += mag * nx
                     f_end[s, i, 1] += mag * ny
                     f_end[s, i, 2] += mag * nz
                     _record_contact(contact, s, i, k if d < r else 0.0, w * c, (nx, ny, nz),
-                                    1.0)
+                                    1.0, kk, (load, load_mid))
                     contacts += 1
                     continue
                 ax, ay, az = pos[s, i, 0], pos[s, i, 1], pos[s, i, 2]
@@ -364,7 +378,9 @@ def reaction_constraint_forces(strands,
                 f_end[s, i, 0] += tt * mag * nx
                 f_end[s, i, 1] += tt * mag * ny
                 f_end[s, i, 2] += tt * mag * nz
-                _record_contact(contact, s, i, k if dq < r else 0.0, w * c, (nx, ny, nz), tt)
+                load = max(0.0, -w * min(fn, 0.0) + k * max(r - dq, 0.0))
+                _record_contact(contact, s, i, k if dq < r else 0.0, w * c, (nx, ny, nz), tt,
+                                kk, (load, 0.0))
                 contacts += 1
     return contacts
 

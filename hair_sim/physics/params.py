@@ -37,6 +37,7 @@ RANGES = {
     'clock_jump_back': (0.001, 86400.0),
     'root_stiffness_scale': (0.0, 1e9),
     'air_damping': (0.0, 100.0),
+    'contact_friction': (0.0, 2.0),
 }
 INTEGRATORS = ('explicit', 'implicit')
 MODELS = ('anjyo', 'articulated')
@@ -87,6 +88,10 @@ class PhysicsParams:
     # term at 60 Hz; a position guard (see kernels) stops deep penetration.
     collision_stiffness: float = 1.5
     collision_damping: float = 0.06
+    # Coulomb friction between hair and the head's and body's spheres (articulated model
+    # only; the thesis model has none): a contact point stops sliding while the tangential
+    # impulse needed is at most this times the normal one.
+    contact_friction: float = 0.0
     # Springs of thesis 5.2 (eq. 11), N/m per metre of strand: type 1 between facing
     # strands of neighbouring strips, type 2 from a vertex to its neighbour's projected
     # wall (inserted only within wall_distance), type 3 from a vertex to its own scalp

@@ -90,6 +90,7 @@ import numpy as np
 
 from hair_sim.physics.forces import (CONTACT_C, CONTACT_FIELDS, CONTACT_K, CONTACT_LEVER,
                                      CONTACT_NX, CONTACT_NY, CONTACT_NZ, CONTACT_SLOTS,
+                                     CONTACT_LOAD, CONTACT_LOAD_MID, CONTACT_SPHERE,
                                      explicit_stability_problem,
                                      GUARD_MOVES, guard_segment, MAX_RATE)
 
@@ -137,12 +138,21 @@ CONTACT_DAMPING_RATE = 200.0
 # the head sank through the margin, was lifted out, sank again); with the vertex put back
 # 1 um out the same strands slept 2.9 s after the head stopped.
 GUARD_LIFT = 1e-6
+# The contact impulses of one strand are coupled through its chain: one pass, root to tip,
+# let the impulse at a tip undo the one at the segment before it, so a strand pressed
+# into a crease kept a velocity into it that the guard undid every step (measured: after
+# the stress bench's random run, strands with two guarded ends held 0.05-0.1 m/s for ever
+# without moving, and their air drag and dampers worked on that phantom motion). Sweeps
+# repeat (projected Gauss-Seidel on the accumulated impulses, each >= 0) until no end's
+# velocity changes by more than IMPULSE_TOLERANCE (m/s), at most IMPULSE_SWEEPS times.
+IMPULSE_SWEEPS = 32
+IMPULSE_TOLERANCE = 1e-7
 
 # air: the rate (1/s) of the drag -air m v on every segment's centre that the shared forces
 # apply explicitly at the start of the step; the chain adds its implicit half (see below)
 ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', 'd',
                                        'inertia_axial',
-                                       'offset', 'air'])
+                                       'offset', 'air', 'friction'])
 
 
 # ------------------------------------------------------------------ 3x3 helpers
@@ -461,57 +471,70 @@ def _stop_inward_motion(s,
 
     The guard moves positions only; left alone, the end's inward velocity would be kept,
     and the joint springs the guard bent would speed it up every step (measured: angular
-    velocities grew without bound under violent head motion). Root to tip, each guarded
-    end gets the impulse along the guard's direction that stops its motion into the
-    sphere relative to the head (the head's surface velocity v + w x (x - p)), through the
-    articulated inertias of this step, so every segment of the chain responds as the
-    dynamics say (Featherstone's test-force propagation); then the vertex velocities are
-    placed again. contacts is (guarded, normal) per segment, chain (R, omega, length),
-    base the roots' (positions, velocities), scratch (u, dw, rc).
+    velocities grew without bound under violent head motion). Each guarded end gets the
+    impulse along the guard's direction that stops its motion into the sphere relative to
+    the head (the head's surface velocity v + w x (x - p)), through the articulated
+    inertias of this step, so every segment of the chain responds as the dynamics say
+    (Featherstone's test-force propagation). The ends of one chain are coupled: sweeps
+    root to tip mend each end's accumulated impulse (never pulling) until none changes a
+    velocity by more than IMPULSE_TOLERANCE (projected Gauss-Seidel); then the vertex
+    velocities are placed again. contacts is (guarded, normal) per segment, chain (R,
+    omega, length), base the roots' (positions, velocities), scratch (u, dw, rc, the
+    accumulated impulses).
     """
     guarded, g_nrm = contacts
     R, omega, length = chain
     roots, root_vel = base
-    u, dw, rc = scratch
+    u, dw, rc, lam = scratch
     n_seg = guarded.shape[0]
     for i in range(n_seg):
-        if not guarded[i]:
-            continue
-        # the end's velocity now, root to the end of segment i
-        vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
-        ex, ey, ez = roots[s, 0], roots[s, 1], roots[s, 2]
-        for j in range(i + 1):
-            seg = length[s, j]
-            bx, by, bz = seg * R[s, j, 0, 2], seg * R[s, j, 1, 2], seg * R[s, j, 2, 2]
-            vx += omega[s, j, 1] * bz - omega[s, j, 2] * by
-            vy += omega[s, j, 2] * bx - omega[s, j, 0] * bz
-            vz += omega[s, j, 0] * by - omega[s, j, 1] * bx
-            ex += bx
-            ey += by
-            ez += bz
-        rx, ry, rz = ex - head.p[0], ey - head.p[1], ez - head.p[2]
-        sx = head.v[0] + head.w[1] * rz - head.w[2] * ry
-        sy = head.v[1] + head.w[2] * rx - head.w[0] * rz
-        sz = head.v[2] + head.w[0] * ry - head.w[1] * rx
-        nrm = g_nrm[i]
-        vn = (vx - sx) * nrm[0] + (vy - sy) * nrm[1] + (vz - sz) * nrm[2]
-        if vn >= 0.0:
-            continue
-        seg = length[s, i]
-        rc[0], rc[1], rc[2] = seg * R[s, i, 0, 2], seg * R[s, i, 1, 2], seg * R[s, i, 2, 2]
-        dvn = _unit_impulse_response(s,
-                                     i,
-                                     (nrm, rc),
-                                     (R, length),
-                                     articulated,
-                                     (u, dw))
-        if dvn <= 1e-300:
-            continue
-        lam = -vn / dvn
-        for j in range(n_seg):
-            omega[s, j, 0] += lam * dw[j, 0]
-            omega[s, j, 1] += lam * dw[j, 1]
-            omega[s, j, 2] += lam * dw[j, 2]
+        lam[i] = 0.0
+    for sweep in range(IMPULSE_SWEEPS):
+        largest = 0.0                       # the largest velocity change of this sweep
+        for i in range(n_seg):
+            if not guarded[i]:
+                continue
+            # the end's velocity now, root to the end of segment i
+            vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
+            ex, ey, ez = roots[s, 0], roots[s, 1], roots[s, 2]
+            for j in range(i + 1):
+                seg = length[s, j]
+                bx, by, bz = seg * R[s, j, 0, 2], seg * R[s, j, 1, 2], seg * R[s, j, 2, 2]
+                vx += omega[s, j, 1] * bz - omega[s, j, 2] * by
+                vy += omega[s, j, 2] * bx - omega[s, j, 0] * bz
+                vz += omega[s, j, 0] * by - omega[s, j, 1] * bx
+                ex += bx
+                ey += by
+                ez += bz
+            rx, ry, rz = ex - head.p[0], ey - head.p[1], ez - head.p[2]
+            sx = head.v[0] + head.w[1] * rz - head.w[2] * ry
+            sy = head.v[1] + head.w[2] * rx - head.w[0] * rz
+            sz = head.v[2] + head.w[0] * ry - head.w[1] * rx
+            nrm = g_nrm[i]
+            vn = (vx - sx) * nrm[0] + (vy - sy) * nrm[1] + (vz - sz) * nrm[2]
+            if vn >= 0.0 and lam[i] == 0.0:
+                continue
+            seg = length[s, i]
+            rc[0], rc[1], rc[2] = seg * R[s, i, 0, 2], seg * R[s, i, 1, 2], seg * R[s, i, 2, 2]
+            dvn = _unit_impulse_response(s,
+                                         i,
+                                         (nrm, rc),
+                                         (R, length),
+                                         articulated,
+                                         (u, dw))
+            if dvn <= 1e-300:
+                continue
+            # the impulse so far, mended towards vn = 0 and never pulling (>= 0)
+            total = max(0.0, lam[i] - vn / dvn)
+            d_lam = total - lam[i]
+            lam[i] = total
+            for j in range(n_seg):
+                omega[s, j, 0] += d_lam * dw[j, 0]
+                omega[s, j, 1] += d_lam * dw[j, 1]
+                omega[s, j, 2] += d_lam * dw[j, 2]
+            largest = max(largest, abs(d_lam * dvn))
+        if largest <= IMPULSE_TOLERANCE:
+            break
     vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
     for j in range(n_seg):
         seg = length[s, j]
@@ -525,6 +548,186 @@ def _stop_inward_motion(s,
         vy += omega[s, j, 2] * bx - omega[s, j, 0] * bz
         vz += omega[s, j, 0] * by - omega[s, j, 1] * bx
         vel[s, j + 1, 0], vel[s, j + 1, 1], vel[s, j + 1, 2] = vx, vy, vz
+
+
+@njit(cache=True)
+def _point_velocity(s,
+                    i,
+                    lever,
+                    chain,
+                    base,
+                    head,
+                    alpha,
+                    h,
+                    rc):
+    """
+    Return a point's velocity after the kick, relative to the head's surface there.
+
+    The point is at lever (0..1) along segment i of strand s, and the kick's angular
+    velocities are omega + h alpha. Writes the point's offset from the joint of segment i
+    into rc.
+    """
+    R, omega, length = chain
+    roots, root_vel = base
+    vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
+    px, py, pz = roots[s, 0], roots[s, 1], roots[s, 2]
+    for j in range(i + 1):
+        lj = length[s, j] * (lever if j == i else 1.0)
+        bx, by, bz = lj * R[s, j, 0, 2], lj * R[s, j, 1, 2], lj * R[s, j, 2, 2]
+        wx = omega[s, j, 0] + h * alpha[j, 0]
+        wy = omega[s, j, 1] + h * alpha[j, 1]
+        wz = omega[s, j, 2] + h * alpha[j, 2]
+        vx += wy * bz - wz * by
+        vy += wz * bx - wx * bz
+        vz += wx * by - wy * bx
+        px += bx
+        py += by
+        pz += bz
+        if j == i:
+            rc[0], rc[1], rc[2] = bx, by, bz
+    rx, ry, rz = px - head.p[0], py - head.p[1], pz - head.p[2]
+    return (vx - (head.v[0] + head.w[1] * rz - head.w[2] * ry),
+            vy - (head.v[1] + head.w[2] * rx - head.w[0] * rz),
+            vz - (head.v[2] + head.w[0] * ry - head.w[1] * rx))
+
+
+@njit(cache=True)
+def _speculative_contacts(s,
+                          contact,
+                          chain,
+                          base,
+                          head,
+                          spheres,
+                          articulated,
+                          scratch,
+                          alpha,
+                          h,
+                          friction):
+    """
+    Limit each contact point's approach to its sphere, and its sliding, before the drift.
+
+    The kick's angular velocities, omega + h alpha, may carry a contact point of strand s
+    into its sphere; the drift would then put it inside, the guard turn it back out and
+    an impulse stop it after the fact (a strand pressed into the head kept a velocity the
+    guard undid every step: measured 0.04-0.05 m/s at the tips of strands that did not
+    move, after the stress bench's random run). Here every point the contact record holds
+    (its segment, lever and sphere; normal and gap taken again at this configuration)
+    may approach by at most its gap (less GUARD_LIFT) in the step, v_n >= -gap / h, and
+    never move inwards once inside. Its sliding relative to the head's surface is opposed
+    by a tangential impulse of at most friction times its normal impulse: this step's
+    normal impulse plus h times the load the surface already bears there (eq. 7's dropped
+    force and the penalty of eq. 8, from the contact record). The impulses, accumulated,
+    the normal ones never pulling, are mended over the strand's contacts until none
+    changes a velocity by more than IMPULSE_TOLERANCE (projected Gauss-Seidel through the
+    articulated inertias of this step), and go into alpha. chain is (R, omega, length),
+    base the roots' (positions, velocities), scratch (u, dw, rc, a direction, and per
+    point: segments, levers, normals, bounds, loads, normal and friction impulses).
+    Returns the points held.
+    """
+    R, omega, length = chain
+    roots, root_vel = base
+    u, dw, rc, t3, c_seg, c_lever, c_nrm, c_bound, c_load, c_lam, c_fric = scratch
+    n_seg = length.shape[1]
+    n_c = 0
+    jx, jy, jz = roots[s, 0], roots[s, 1], roots[s, 2]      # the joint of segment i
+    for i in range(n_seg):
+        seg = length[s, i]
+        dx, dy, dz = R[s, i, 0, 2], R[s, i, 1, 2], R[s, i, 2, 2]
+        for q in range(CONTACT_SLOTS):
+            slot = q * CONTACT_FIELDS
+            if contact[s, i, slot + CONTACT_K] + contact[s, i, slot + CONTACT_C] <= 0.0:
+                break
+            lever = contact[s, i, slot + CONTACT_LEVER]
+            k = int(contact[s, i, slot + CONTACT_SPHERE])
+            ex = jx + lever * seg * dx - spheres[k, 0]
+            ey = jy + lever * seg * dy - spheres[k, 1]
+            ez = jz + lever * seg * dz - spheres[k, 2]
+            dist = sqrt(ex * ex + ey * ey + ez * ez)
+            if dist < 1e-12:
+                continue
+            nx, ny, nz = ex / dist, ey / dist, ez / dist
+            # the point itself; and the segment's middle, where eq. 7's dropped
+            # distributed force was borne (friction only)
+            for mid in range(2):
+                load = contact[s, i, slot + (CONTACT_LOAD_MID if mid else CONTACT_LOAD)]
+                if mid and load <= 0.0:
+                    break
+                c_seg[n_c] = i
+                c_lever[n_c] = 0.5 if mid else lever
+                c_nrm[n_c, 0], c_nrm[n_c, 1], c_nrm[n_c, 2] = nx, ny, nz
+                # (-inf: no normal constraint at the middle)
+                c_bound[n_c] = -np.inf if mid else \
+                    -max(dist - spheres[k, 3] - GUARD_LIFT, 0.0) / h
+                c_load[n_c] = load
+                c_lam[n_c] = 0.0
+                c_fric[n_c, 0] = c_fric[n_c, 1] = c_fric[n_c, 2] = 0.0
+                n_c += 1
+        jx += seg * dx
+        jy += seg * dy
+        jz += seg * dz
+    if n_c == 0:
+        return 0
+    for sweep in range(IMPULSE_SWEEPS):
+        largest = 0.0
+        for c in range(n_c):
+            i = c_seg[c]
+            lever = c_lever[c]
+            vx, vy, vz = _point_velocity(s, i, lever, chain, base, head, alpha, h, rc)
+            nrm = c_nrm[c]
+            vn = vx * nrm[0] + vy * nrm[1] + vz * nrm[2]
+            if vn < c_bound[c] or c_lam[c] > 0.0:
+                dvn = _unit_impulse_response(s,
+                                             i,
+                                             (nrm, rc),
+                                             (R, length),
+                                             articulated,
+                                             (u, dw))
+                if dvn > 1e-300:
+                    total = max(0.0, c_lam[c] + (c_bound[c] - vn) / dvn)
+                    d_lam = total - c_lam[c]
+                    c_lam[c] = total
+                    for j in range(n_seg):
+                        alpha[j, 0] += d_lam * dw[j, 0] / h
+                        alpha[j, 1] += d_lam * dw[j, 1] / h
+                        alpha[j, 2] += d_lam * dw[j, 2] / h
+                    largest = max(largest, abs(d_lam * dvn))
+            cap = friction * (c_lam[c] + h * c_load[c])
+            if cap <= 0.0 and c_fric[c, 0] == 0.0 and c_fric[c, 1] == 0.0 and \
+                    c_fric[c, 2] == 0.0:
+                continue
+            # Coulomb: an impulse against the sliding, the one that stops it along its
+            # direction, added to this point's so far and kept within |impulse| <= cap
+            vx, vy, vz = _point_velocity(s, i, lever, chain, base, head, alpha, h, rc)
+            nrm = c_nrm[c]
+            vn = vx * nrm[0] + vy * nrm[1] + vz * nrm[2]
+            ux, uy, uz = vx - vn * nrm[0], vy - vn * nrm[1], vz - vn * nrm[2]
+            slide = sqrt(ux * ux + uy * uy + uz * uz)
+            wx, wy, wz = c_fric[c, 0], c_fric[c, 1], c_fric[c, 2]
+            if slide > 1e-300:
+                t3[0], t3[1], t3[2] = ux / slide, uy / slide, uz / slide
+                d_t = _unit_impulse_response(s, i, (t3, rc), (R, length), articulated, (u, dw))
+                if d_t > 1e-300:
+                    wx -= slide / d_t * t3[0]
+                    wy -= slide / d_t * t3[1]
+                    wz -= slide / d_t * t3[2]
+            size = sqrt(wx * wx + wy * wy + wz * wz)
+            if size > cap:
+                wx, wy, wz = wx * cap / size, wy * cap / size, wz * cap / size
+            ex_, ey_, ez_ = wx - c_fric[c, 0], wy - c_fric[c, 1], wz - c_fric[c, 2]
+            step = sqrt(ex_ * ex_ + ey_ * ey_ + ez_ * ez_)
+            if step <= 1e-300:
+                continue
+            c_fric[c, 0], c_fric[c, 1], c_fric[c, 2] = wx, wy, wz
+            t3[0], t3[1], t3[2] = ex_ / step, ey_ / step, ez_ / step
+            d_e = _unit_impulse_response(s, i, (t3, rc), (R, length), articulated, (u, dw))
+            for j in range(n_seg):
+                alpha[j, 0] += step * dw[j, 0] / h
+                alpha[j, 1] += step * dw[j, 1] / h
+                alpha[j, 2] += step * dw[j, 2] / h
+            largest = max(largest, abs(step * d_e))
+        if largest <= IMPULSE_TOLERANCE:
+            break
+    return n_c
 
 
 @njit(cache=True)
@@ -617,6 +820,15 @@ def step_chains(state,
     u_imp = np.zeros((n_seg, 3))
     dw = np.zeros((n_seg, 3))
     rc_imp = np.zeros(3)
+    lam_imp = np.zeros(n_seg)
+    c_seg = np.zeros(2 * n_seg * CONTACT_SLOTS, dtype=np.int64)   # the speculative contacts
+    c_lever = np.zeros(2 * n_seg * CONTACT_SLOTS)
+    c_nrm = np.zeros((2 * n_seg * CONTACT_SLOTS, 3))
+    c_bound = np.zeros(2 * n_seg * CONTACT_SLOTS)
+    c_load = np.zeros(2 * n_seg * CONTACT_SLOTS)
+    c_lam = np.zeros(2 * n_seg * CONTACT_SLOTS)          # normal impulses
+    c_fric = np.zeros((2 * n_seg * CONTACT_SLOTS, 3))    # friction impulses
+    t_fric = np.zeros(3)
     max_rate = 0.0
     guards = 0
     Rh = head.R
@@ -846,6 +1058,19 @@ def step_chains(state,
             alpha[i, 0] += ax_
             alpha[i, 1] += ay_
             alpha[i, 2] += az_
+        if collide:
+            _speculative_contacts(s,
+                                  contact,
+                                  (R, omega, length),
+                                  (roots, root_vel),
+                                  head,
+                                  spheres,
+                                  (Dinv, U_A, U_B),
+                                  (u_imp, dw, rc_imp, t_fric, c_seg, c_lever, c_nrm, c_bound,
+                                   c_load, c_lam, c_fric),
+                                  alpha,
+                                  h,
+                                  state.friction)
         # ---------------- integrate, place the vertices, guard
         for j in range(n_seg + 1):
             pos_prev[s, j, 0] = pos[s, j, 0]
@@ -941,7 +1166,7 @@ def step_chains(state,
                                 (roots, root_vel),
                                 head,
                                 (Dinv, U_A, U_B),
-                                (u_imp, dw, rc_imp),
+                                (u_imp, dw, rc_imp, lam_imp),
                                 vel)
     stats[MAX_RATE] = max_rate
     stats[GUARD_MOVES] += guards
@@ -1141,6 +1366,7 @@ class ArticulatedSolver:
             self.modeled, sim.length, sim.mass))
         self.inertia_axial = np.ascontiguousarray(0.5 * sim.mass * p.bundle_radius ** 2)
         self.air = self.air_damping_rate(p)
+        self.friction = p.contact_friction
         if p.gravity_compensation:
             offset = sag_free_offsets(self.modeled, sim.length, sim.mass, self.k,
                                       [0.0, 0.0, -p.gravity])
@@ -1170,7 +1396,7 @@ class ArticulatedSolver:
         """Return the kernel's view of the arrays, shared and not copied."""
         return ChainState(R=self.R, omega=self.omega, alpha=self.alpha, rest_rel=self.rest_rel,
                           k=self.k, d=self.d, inertia_axial=self.inertia_axial,
-                          offset=self.offset, air=self.air)
+                          offset=self.offset, air=self.air, friction=self.friction)
 
     def place(self, sim, world_dir):
         """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""
