@@ -621,12 +621,13 @@ def _speculative_contacts(s,
     changes a velocity by more than IMPULSE_TOLERANCE (projected Gauss-Seidel through the
     articulated inertias of this step), and go into alpha. chain is (R, omega, length),
     base the roots' (positions, velocities), scratch (u, dw, rc, a direction, and per
-    point: segments, levers, normals, bounds, loads, normal and friction impulses).
-    Returns the points held.
+    point: segments, levers, normals, bounds, loads, normal and friction impulses, normal
+    responses and their size along the normal). Returns the points held.
     """
     R, omega, length = chain
     roots, root_vel = base
-    u, dw, rc, t3, c_seg, c_lever, c_nrm, c_bound, c_load, c_lam, c_fric = scratch
+    u, dw, rc, t3, c_seg, c_lever, c_nrm, c_bound, c_load, c_lam, c_fric, c_dw, c_dvn = \
+        scratch
     n_seg = length.shape[1]
     n_c = 0
     jx, jy, jz = roots[s, 0], roots[s, 1], roots[s, 2]      # the joint of segment i
@@ -650,7 +651,7 @@ def _speculative_contacts(s,
             # distributed force was borne (friction only)
             for mid in range(2):
                 load = contact[s, i, slot + (CONTACT_LOAD_MID if mid else CONTACT_LOAD)]
-                if mid and load <= 0.0:
+                if mid and (load <= 0.0 or friction <= 0.0):
                     break
                 c_seg[n_c] = i
                 c_lever[n_c] = 0.5 if mid else lever
@@ -660,6 +661,7 @@ def _speculative_contacts(s,
                     -max(dist - spheres[k, 3] - GUARD_LIFT, 0.0) / h
                 c_load[n_c] = load
                 c_lam[n_c] = 0.0
+                c_dvn[n_c] = -1.0
                 c_fric[n_c, 0] = c_fric[n_c, 1] = c_fric[n_c, 2] = 0.0
                 n_c += 1
         jx += seg * dx
@@ -672,24 +674,28 @@ def _speculative_contacts(s,
         for c in range(n_c):
             i = c_seg[c]
             lever = c_lever[c]
-            vx, vy, vz = _point_velocity(s, i, lever, chain, base, head, alpha, h, rc)
             nrm = c_nrm[c]
-            vn = vx * nrm[0] + vy * nrm[1] + vz * nrm[2]
-            if vn < c_bound[c] or c_lam[c] > 0.0:
-                dvn = _unit_impulse_response(s,
-                                             i,
-                                             (nrm, rc),
-                                             (R, length),
-                                             articulated,
-                                             (u, dw))
+            vn = 0.0
+            if c_bound[c] > -np.inf:            # (a middle: friction only)
+                vx, vy, vz = _point_velocity(s, i, lever, chain, base, head, alpha, h, rc)
+                vn = vx * nrm[0] + vy * nrm[1] + vz * nrm[2]
+            if c_bound[c] > -np.inf and (vn < c_bound[c] or c_lam[c] > 0.0):
+                if c_dvn[c] < 0.0:              # the response is the step's: kept
+                    c_dvn[c] = _unit_impulse_response(s,
+                                                      i,
+                                                      (nrm, rc),
+                                                      (R, length),
+                                                      articulated,
+                                                      (u, c_dw[c]))
+                dvn = c_dvn[c]
                 if dvn > 1e-300:
                     total = max(0.0, c_lam[c] + (c_bound[c] - vn) / dvn)
                     d_lam = total - c_lam[c]
                     c_lam[c] = total
                     for j in range(n_seg):
-                        alpha[j, 0] += d_lam * dw[j, 0] / h
-                        alpha[j, 1] += d_lam * dw[j, 1] / h
-                        alpha[j, 2] += d_lam * dw[j, 2] / h
+                        alpha[j, 0] += d_lam * c_dw[c, j, 0] / h
+                        alpha[j, 1] += d_lam * c_dw[c, j, 1] / h
+                        alpha[j, 2] += d_lam * c_dw[c, j, 2] / h
                     largest = max(largest, abs(d_lam * dvn))
             cap = friction * (c_lam[c] + h * c_load[c])
             if cap <= 0.0 and c_fric[c, 0] == 0.0 and c_fric[c, 1] == 0.0 and \
@@ -829,6 +835,8 @@ def step_chains(state,
     c_lam = np.zeros(2 * n_seg * CONTACT_SLOTS)          # normal impulses
     c_fric = np.zeros((2 * n_seg * CONTACT_SLOTS, 3))    # friction impulses
     t_fric = np.zeros(3)
+    c_dw = np.zeros((2 * n_seg * CONTACT_SLOTS, n_seg, 3))   # their normal responses
+    c_dvn = np.zeros(2 * n_seg * CONTACT_SLOTS)
     max_rate = 0.0
     guards = 0
     Rh = head.R
@@ -1067,7 +1075,7 @@ def step_chains(state,
                                   spheres,
                                   (Dinv, U_A, U_B),
                                   (u_imp, dw, rc_imp, t_fric, c_seg, c_lever, c_nrm, c_bound,
-                                   c_load, c_lam, c_fric),
+                                   c_load, c_lam, c_fric, c_dw, c_dvn),
                                   alpha,
                                   h,
                                   state.friction)
