@@ -146,6 +146,42 @@ def test_guard_puts_the_end_out_when_two_spheres_pull_against_each_other(margin)
     assert dip <= forces.SEGMENT_TOLERANCE + 1e-6, dip
 
 
+
+@pytest.mark.parametrize('margin', [forces.GUARD_MARGIN, 1e-6])
+def test_guard_puts_an_end_caught_in_a_crease_out_of_both_spheres(margin):
+    """
+    A tip segment whose end is caught in the crease between two spheres (neck and body).
+
+    Taken from the articulated model's long random run (thesis_long, 1/240 s, step 85440):
+    turning the end out of one sphere put it into the other, and after the sweeps ran out
+    the tip was 0.28 mm inside. The end must come out of both, on the nearest point of the
+    crease (checked by brute force over directions), and the segment keep its length.
+    """
+    start = np.array([-0.08442225761005523, -0.08251336667460477, -0.0429870161377269])
+    end = np.array([-0.03245112796146634, -0.07688929480344667, -0.04639247583538321])
+    seg = 0.05238535727772359
+    spheres = np.array([
+        [0.010286867834338409, -0.06327414620370984, -0.004774161359513387, 0.062],
+        [-0.0064525935982482595, -0.07907138555408694, -0.08915566205637135, 0.05]])
+    assert (np.linalg.norm(end - spheres[:, :3], axis=1) - spheres[:, 3]).min() < 0.0
+    x, y, z, moved = forces.guard_segment(tuple(start), tuple(end), seg, spheres,
+                                          np.int64(3), margin)
+    out = np.array([x, y, z])
+    assert moved
+    clearance = np.linalg.norm(out - spheres[:, :3], axis=1) - spheres[:, 3]
+    assert clearance.min() > 0.0, clearance
+    assert abs(np.linalg.norm(out - start) - seg) < 1e-12
+    # the nearest allowed end, by brute force over a fine grid of directions near the end
+    rng = np.random.default_rng(0)
+    d0 = (end - start) / seg
+    dirs = d0 + rng.normal(scale=0.05, size=(400000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    ends = start + seg * dirs
+    gap = np.linalg.norm(ends[:, None] - spheres[None, :, :3], axis=2) - spheres[:, 3]
+    allowed = ends[(gap >= margin).all(axis=1)]
+    nearest = np.linalg.norm(allowed - end, axis=1).min()
+    assert np.linalg.norm(out - end) <= nearest + 1e-5, (np.linalg.norm(out - end), nearest)
+
 def _crease_head(tangent_points, normal, radius):
     """Return a head of spheres touching a line at tangent_points from below (-normal)."""
     from hair_sim.modeling.head import HeadModel
