@@ -146,7 +146,6 @@ def test_guard_puts_the_end_out_when_two_spheres_pull_against_each_other(margin)
     assert dip <= forces.SEGMENT_TOLERANCE + 1e-6, dip
 
 
-
 @pytest.mark.parametrize('margin', [forces.GUARD_MARGIN, 1e-6])
 def test_guard_puts_an_end_caught_in_a_crease_out_of_both_spheres(margin):
     """
@@ -181,6 +180,7 @@ def test_guard_puts_an_end_caught_in_a_crease_out_of_both_spheres(margin):
     allowed = ends[(gap >= margin).all(axis=1)]
     nearest = np.linalg.norm(allowed - end, axis=1).min()
     assert np.linalg.norm(out - end) <= nearest + 1e-5, (np.linalg.norm(out - end), nearest)
+
 
 def _crease_head(tangent_points, normal, radius):
     """Return a head of spheres touching a line at tangent_points from below (-normal)."""
