@@ -139,12 +139,11 @@ CONTACT_DAMPING_RATE = 200.0
 # 1 um out the same strands slept 2.9 s after the head stopped.
 GUARD_LIFT = 1e-6
 # The contact impulses of one strand are coupled through its chain: one pass, root to tip,
-# let the impulse at a tip undo the one at the segment before it, so a strand pressed
-# into a crease kept a velocity into it that the guard undid every step (measured: after
-# the stress bench's random run, strands with two guarded ends held 0.05-0.1 m/s for ever
-# without moving, and their air drag and dampers worked on that phantom motion). Sweeps
-# repeat (projected Gauss-Seidel on the accumulated impulses, each >= 0) until no end's
-# velocity changes by more than IMPULSE_TOLERANCE (m/s), at most IMPULSE_SWEEPS times.
+# let the impulse at a tip undo part of the one at the segment before it (seen after the
+# stress bench's random run, on a strand with two guarded ends: the first moved inwards at
+# 0.02 m/s again at every step). Sweeps repeat (projected Gauss-Seidel on the impulses,
+# each >= 0) until no velocity changes by more than IMPULSE_TOLERANCE (m/s), at most
+# IMPULSE_SWEEPS times; the same for the contacts before the drift (_speculative_contacts).
 IMPULSE_SWEEPS = 32
 IMPULSE_TOLERANCE = 1e-7
 
