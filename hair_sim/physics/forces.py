@@ -505,6 +505,20 @@ def strip_springs(strands,
 
 
 @njit(cache=True)
+def _end_cone(sx, sy, sz, r, seg_len, margin):
+    """
+    Return (u, kappa) of the cone a segment's end direction must keep out of.
+
+    The end p + l d is margin outside a sphere iff d.u <= kappa. (sx, sy, sz) is the start
+    p less the sphere's centre, u the unit vector from p to the centre; kappa <= -1 when
+    the end cannot reach the sphere.
+    """
+    D = sqrt(sx * sx + sy * sy + sz * sz)
+    rr = r + margin
+    return -sx / D, -sy / D, -sz / D, (D * D + seg_len * seg_len - rr * rr) / (2.0 * seg_len * D)
+
+
+@njit(cache=True)
 def guard_segment(start, end, seg_len, spheres, mask, margin=GUARD_MARGIN):
     """
     Position guard: turn the segment p->e (length l) so no vertex ends inside a sphere.
@@ -542,12 +556,9 @@ def guard_segment(start, end, seg_len, spheres, mask, margin=GUARD_MARGIN):
             tx, ty, tz = 0.0, 0.0, 0.0
             hit = False
             if d2 < r * r:
-                # The end p + l d' stays outside iff d'.u <= kappa (u: unit vector from p to
-                # the centre, D: their distance): project d onto that cone, exactly.
-                D = sqrt(sx * sx + sy * sy + sz * sz)
-                ux, uy, uz = -sx / D, -sy / D, -sz / D
-                rr = r + margin
-                kappa = (D * D + seg_len * seg_len - rr * rr) / (2.0 * seg_len * D)
+                # The end p + l d' stays outside iff d'.u <= kappa (_end_cone): project d
+                # onto that cone, exactly.
+                ux, uy, uz, kappa = _end_cone(sx, sy, sz, r, seg_len, margin)
                 if kappa > -1.0:
                     kappa = min(kappa, 1.0)
                     # (heading straight at the centre: any side will do)
@@ -627,11 +638,9 @@ def _end_out_of_a_crease(start, end, seg_len, spheres, mask, margin):
         r = spheres[k, 3]
         if D < r - START_INSIDE or D < 1e-12:
             continue
-        rr = r + margin
-        kappa = (D * D + seg_len * seg_len - rr * rr) / (2.0 * seg_len * D)
+        u[k, 0], u[k, 1], u[k, 2], kappa = _end_cone(sx, sy, sz, r, seg_len, margin)
         if kappa <= -1.0:
             continue                       # the end cannot reach this sphere
-        u[k, 0], u[k, 1], u[k, 2] = -sx / D, -sy / D, -sz / D
         kap[k] = min(kappa, 1.0)
     dx, dy, dz = (ex - px) / seg_len, (ey - py) / seg_len, (ez - pz) / seg_len
     inside = False

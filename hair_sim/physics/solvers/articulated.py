@@ -493,28 +493,12 @@ def _stop_inward_motion(s,
         for i in range(n_seg):
             if not guarded[i]:
                 continue
-            # the end's velocity now, root to the end of segment i
-            vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
-            ex, ey, ez = roots[s, 0], roots[s, 1], roots[s, 2]
-            for j in range(i + 1):
-                seg = length[s, j]
-                bx, by, bz = seg * R[s, j, 0, 2], seg * R[s, j, 1, 2], seg * R[s, j, 2, 2]
-                vx += omega[s, j, 1] * bz - omega[s, j, 2] * by
-                vy += omega[s, j, 2] * bx - omega[s, j, 0] * bz
-                vz += omega[s, j, 0] * by - omega[s, j, 1] * bx
-                ex += bx
-                ey += by
-                ez += bz
-            rx, ry, rz = ex - head.p[0], ey - head.p[1], ez - head.p[2]
-            sx = head.v[0] + head.w[1] * rz - head.w[2] * ry
-            sy = head.v[1] + head.w[2] * rx - head.w[0] * rz
-            sz = head.v[2] + head.w[0] * ry - head.w[1] * rx
+            # the end's velocity now (h = 0: omega as it is), relative to the head's surface
+            vx, vy, vz = _point_velocity(s, i, 1.0, chain, base, head, u, 0.0, rc)
             nrm = g_nrm[i]
-            vn = (vx - sx) * nrm[0] + (vy - sy) * nrm[1] + (vz - sz) * nrm[2]
+            vn = vx * nrm[0] + vy * nrm[1] + vz * nrm[2]
             if vn >= 0.0 and lam[i] == 0.0:
                 continue
-            seg = length[s, i]
-            rc[0], rc[1], rc[2] = seg * R[s, i, 0, 2], seg * R[s, i, 1, 2], seg * R[s, i, 2, 2]
             dvn = _unit_impulse_response(s,
                                          i,
                                          (nrm, rc),
@@ -703,7 +687,6 @@ def _speculative_contacts(s,
             # Coulomb: an impulse against the sliding, the one that stops it along its
             # direction, added to this point's so far and kept within |impulse| <= cap
             vx, vy, vz = _point_velocity(s, i, lever, chain, base, head, alpha, h, rc)
-            nrm = c_nrm[c]
             vn = vx * nrm[0] + vy * nrm[1] + vz * nrm[2]
             ux, uy, uz = vx - vn * nrm[0], vy - vn * nrm[1], vz - vn * nrm[2]
             slide = sqrt(ux * ux + uy * uy + uz * uz)
