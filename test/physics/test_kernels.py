@@ -20,8 +20,8 @@ from hair_sim.physics.solvers.anjyo import (_direction, _moments_of_trig, _next_
 
 
 def random_chart(rng):
-    """Return a random chart: rows are its x, y, z axes in the world."""
-    return np.ascontiguousarray(Rotation.random(random_state=rng).as_matrix().T)
+    """Return a random chart as the kernels take it: its x, y, z axes (world), row by row."""
+    return tuple(Rotation.random(random_state=rng).as_matrix().T.ravel())
 
 
 @pytest.mark.parametrize('seed', range(6))
@@ -33,11 +33,11 @@ def test_recentre_keeps_directions_and_leaves_the_pole(seed):
     thp, php = th + 0.01, ph - 0.02
     rest = np.array(_direction(C, 0.3, 1.0))
     before = [np.array(_direction(C, th, ph)), np.array(_direction(C, thp, php))]
-    C2 = C.copy()
-    th2, ph2, thp2, php2, th0, ph0, moved = _recentre(C2, th, ph, thp, php, math.cos(th),
-                                                      tuple(rest))
+    C2, th2, ph2, thp2, php2, th0, ph0, moved = _recentre(C, th, ph, thp, php, math.cos(th),
+                                                          tuple(rest))
     assert moved
-    assert np.allclose(C2 @ C2.T, np.eye(3), atol=1e-12)
+    rows = np.reshape(C2, (3, 3))
+    assert np.allclose(rows @ rows.T, np.eye(3), atol=1e-12)
     assert np.allclose(_direction(C2, th2, ph2), before[0], atol=1e-12)
     assert np.allclose(_direction(C2, thp2, php2), before[1], atol=1e-12)
     assert np.allclose(_direction(C2, th0, ph0), rest, atol=1e-12)
@@ -58,7 +58,8 @@ def test_moments_are_the_virtual_work_of_the_forces(seed):
     eps = 1e-6
     m_theta = (work(th + eps, ph) - work(th - eps, ph)) / (2 * eps)
     m_phi = (work(th, ph + eps) - work(th, ph - eps)) / (2 * eps)
-    got = _moments_of_trig(C, math.sin(th), math.cos(th), math.sin(ph), math.cos(ph), seg, fd, fe)
+    got = _moments_of_trig(C, math.sin(th), math.cos(th), math.sin(ph), math.cos(ph), seg,
+                           tuple(fd), tuple(fe))
     assert got[0] == pytest.approx(m_theta, rel=1e-7, abs=1e-12)
     assert got[1] == pytest.approx(m_phi, rel=1e-7, abs=1e-12)
 

@@ -64,6 +64,29 @@ def _wrap(a):
 
 
 @njit(cache=True)
+def _chart_of(chart, s, i):
+    """
+    Return the chart of segment (s, i) as a tuple of its rows (x, y, z), row by row.
+
+    The step's kernels pass charts as tuples of numbers, not as views of `chart`: a view
+    made per segment costs an atomic increment and decrement of the array's reference
+    count (numba's runtime), and those were a quarter of a thesis-model step (measured
+    with perf: NRT_incref/NRT_decref at 180 strips).
+    """
+    return (chart[s, i, 0, 0], chart[s, i, 0, 1], chart[s, i, 0, 2],
+            chart[s, i, 1, 0], chart[s, i, 1, 1], chart[s, i, 1, 2],
+            chart[s, i, 2, 0], chart[s, i, 2, 1], chart[s, i, 2, 2])
+
+
+@njit(cache=True)
+def _put_chart(chart, s, i, C):
+    """Write the chart tuple C (see _chart_of) into chart[s, i]."""
+    for r in range(3):
+        for c in range(3):
+            chart[s, i, r, c] = C[3 * r + c]
+
+
+@njit(cache=True)
 def _angles(C, dx, dy, dz):
     """Return (theta, phi) of unit direction d in chart C."""
     th, ph, _ = _angles_cos(C, dx, dy, dz)
@@ -73,9 +96,9 @@ def _angles(C, dx, dy, dz):
 @njit(cache=True)
 def _angles_cos(C, dx, dy, dz):
     """Return (theta, phi, cos(theta)) of unit direction d in chart C."""
-    cz = C[2, 0] * dx + C[2, 1] * dy + C[2, 2] * dz
-    cx = C[0, 0] * dx + C[0, 1] * dy + C[0, 2] * dz
-    cy = C[1, 0] * dx + C[1, 1] * dy + C[1, 2] * dz
+    cz = C[6] * dx + C[7] * dy + C[8] * dz
+    cx = C[0] * dx + C[1] * dy + C[2] * dz
+    cy = C[3] * dx + C[4] * dy + C[5] * dz
     cz = min(1.0, max(-1.0, cz))
     return acos(cz), atan2(cy, cx), cz
 
@@ -91,38 +114,33 @@ def _direction_of_trig(C, st, ct, sp, cp):
     """Return the unit direction in chart C whose angles have these sines and cosines."""
     a = st * cp
     b = st * sp
-    return (a * C[0, 0] + b * C[1, 0] + ct * C[2, 0],
-            a * C[0, 1] + b * C[1, 1] + ct * C[2, 1],
-            a * C[0, 2] + b * C[1, 2] + ct * C[2, 2])
+    return (a * C[0] + b * C[3] + ct * C[6],
+            a * C[1] + b * C[4] + ct * C[7],
+            a * C[2] + b * C[5] + ct * C[8])
 
 
 @njit(cache=True)
 def _rechart(C, dx, dy, dz, rx, ry, rz):
-    """Re-centre chart C in place so that d and the rest direction r lie on its equator."""
+    """Return chart C re-centred so that d and the rest direction r lie on its equator."""
     zx = dy * rz - dz * ry
     zy = dz * rx - dx * rz
     zz = dx * ry - dy * rx
     n = sqrt(zx * zx + zy * zy + zz * zz)
     if n < 1e-6:                      # d parallel to r: keep the old polar axis, minimally
-        zx, zy, zz = perpendicular_unit(C[2, 0], C[2, 1], C[2, 2], dx, dy, dz, 1e-6)
+        zx, zy, zz = perpendicular_unit(C[6], C[7], C[8], dx, dy, dz, 1e-6)
     else:
         zx /= n
         zy /= n
         zz /= n
-    C[0, 0], C[0, 1], C[0, 2] = dx, dy, dz
-    C[2, 0], C[2, 1], C[2, 2] = zx, zy, zz
-    C[1, 0] = zy * dz - zz * dy
-    C[1, 1] = zz * dx - zx * dz
-    C[1, 2] = zx * dy - zy * dx
+    return (dx, dy, dz,
+            zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx,
+            zx, zy, zz)
 
 
 @njit(cache=True)
-def _store_trig(trig, th, ph):
-    """Write (sin theta, cos theta, sin phi, cos phi) of the angles into trig."""
-    trig[SIN_TH] = sin(th)
-    trig[COS_TH] = cos(th)
-    trig[SIN_PH] = sin(ph)
-    trig[COS_PH] = cos(ph)
+def _trig_of(th, ph):
+    """Return (sin theta, cos theta, sin phi, cos phi) of the angles."""
+    return sin(th), cos(th), sin(ph), cos(ph)
 
 
 @njit(cache=True)
@@ -142,14 +160,11 @@ def _sin_cos_small(d):
 
 @njit(cache=True)
 def _turn_trig(trig, d_th, d_ph):
-    """Advance trig from the angles (theta, phi) to (theta + d_th, phi + d_ph): sums of angles."""
+    """Return trig (sines and cosines of theta, phi) turned by (d_th, d_ph): sums of angles."""
     sa, ca = _sin_cos_small(d_th)
     sb, cb = _sin_cos_small(d_ph)
-    st, ct, sp, cp = trig[SIN_TH], trig[COS_TH], trig[SIN_PH], trig[COS_PH]
-    trig[SIN_TH] = st * ca + ct * sa
-    trig[COS_TH] = ct * ca - st * sa
-    trig[SIN_PH] = sp * cb + cp * sb
-    trig[COS_PH] = cp * cb - sp * sb
+    st, ct, sp, cp = trig
+    return st * ca + ct * sa, ct * ca - st * sa, sp * cb + cp * sb, cp * cb - sp * sb
 
 
 @njit(cache=True)
@@ -159,11 +174,11 @@ def init_charts(directions, chart, theta, phi, trig):
     for s in range(n_s):
         for i in range(n_seg):
             dx, dy, dz = directions[s, i, 0], directions[s, i, 1], directions[s, i, 2]
-            C = chart[s, i]
-            C[2, 0], C[2, 1], C[2, 2] = 0.0, 0.0, 1.0
-            _rechart(C, dx, dy, dz, dx, dy, dz)
+            C = _rechart((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0), dx, dy, dz, dx, dy, dz)
+            _put_chart(chart, s, i, C)
             theta[s, i], phi[s, i] = _angles(C, dx, dy, dz)
-            _store_trig(trig[s, i], theta[s, i], phi[s, i])
+            trig[s, i, SIN_TH], trig[s, i, COS_TH], trig[s, i, SIN_PH], trig[s, i, COS_PH] = \
+                _trig_of(theta[s, i], phi[s, i])
 
 
 @njit(cache=True)
@@ -184,7 +199,7 @@ def _recentre(C, th, ph, thp, php, cos_th, rest):
     """
     Re-centre chart C when the segment or its rest direction r nears a pole.
 
-    cos_th is cos(theta) of the segment (the step carries it). Returns (theta, phi,
+    cos_th is cos(theta) of the segment (the step carries it). Returns (chart, theta, phi,
     previous theta, previous phi, rest theta, rest phi, recharted); rest is (x, y, z).
     """
     rx, ry, rz = rest
@@ -192,12 +207,12 @@ def _recentre(C, th, ph, thp, php, cos_th, rest):
     if abs(cos_th) > POLE_COS or abs(ct0) > POLE_COS:
         dx, dy, dz = _direction(C, th, ph)
         qx, qy, qz = _direction(C, thp, php)
-        _rechart(C, dx, dy, dz, rx, ry, rz)
+        C = _rechart(C, dx, dy, dz, rx, ry, rz)
         th, ph = _angles(C, dx, dy, dz)
         thp, php = _angles(C, qx, qy, qz)
         th0, ph0 = _angles(C, rx, ry, rz)
-        return th, ph, thp, php, th0, ph0, True
-    return th, ph, thp, php, th0, ph0, False
+        return C, th, ph, thp, php, th0, ph0, True
+    return C, th, ph, thp, php, th0, ph0, False
 
 
 @njit(cache=True)
@@ -210,12 +225,12 @@ def _moments_of_trig(C, st, ct, sp, cp, seg_len, fd, fe):
     by their sines and cosines (the step carries them).
     """
     # unit vectors along increasing theta and phi (fig. 4.3)
-    etx = ct * cp * C[0, 0] + ct * sp * C[1, 0] - st * C[2, 0]
-    ety = ct * cp * C[0, 1] + ct * sp * C[1, 1] - st * C[2, 1]
-    etz = ct * cp * C[0, 2] + ct * sp * C[1, 2] - st * C[2, 2]
-    epx = -sp * C[0, 0] + cp * C[1, 0]
-    epy = -sp * C[0, 1] + cp * C[1, 1]
-    epz = -sp * C[0, 2] + cp * C[1, 2]
+    etx = ct * cp * C[0] + ct * sp * C[3] - st * C[6]
+    ety = ct * cp * C[1] + ct * sp * C[4] - st * C[7]
+    etz = ct * cp * C[2] + ct * sp * C[5] - st * C[8]
+    epx = -sp * C[0] + cp * C[3]
+    epy = -sp * C[1] + cp * C[4]
+    epz = -sp * C[2] + cp * C[5]
     fdt = fd[0] * etx + fd[1] * ety + fd[2] * etz
     fdp = fd[0] * epx + fd[1] * epy + fd[2] * epz
     fet = fe[0] * etx + fe[1] * ety + fe[2] * etz
@@ -282,21 +297,24 @@ def integrate_strands(state,
         pos[s, 0, 0], pos[s, 0, 1], pos[s, 0, 2] = px, py, pz
         mask = masks[s] if collide else np.int64(0)
         for i in range(n_seg):
-            C = chart[s, i]
             rx, ry, rz = rotate(R, rest_dir[s, i, 0], rest_dir[s, i, 1], rest_dir[s, i, 2])
-            tr = trig[s, i]
-            th, ph, thp, php, th0, ph0, recharted = _recentre(
-                C, theta[s, i], phi[s, i], theta_prev[s, i], phi_prev[s, i], tr[COS_TH],
-                (rx, ry, rz))
+            C, th, ph, thp, php, th0, ph0, recharted = _recentre(
+                _chart_of(chart, s, i), theta[s, i], phi[s, i], theta_prev[s, i],
+                phi_prev[s, i], trig[s, i, COS_TH], (rx, ry, rz))
             if recharted:
                 recharts += 1
-                _store_trig(tr, th, ph)
+                _put_chart(chart, s, i, C)
+                tr = _trig_of(th, ph)
+            else:
+                tr = (trig[s, i, SIN_TH], trig[s, i, COS_TH], trig[s, i, SIN_PH],
+                      trig[s, i, COS_PH])
             st = tr[SIN_TH]
             if st < min_sin:
                 min_sin = st
             seg_len = length[s, i]
             m_th, m_ph = _moments_of_trig(C, st, tr[COS_TH], tr[SIN_PH], tr[COS_PH], seg_len,
-                                          f_dist[s, i], f_end[s, i])
+                                          (f_dist[s, i, 0], f_dist[s, i, 1], f_dist[s, i, 2]),
+                                          (f_end[s, i, 0], f_end[s, i, 1], f_end[s, i, 2]))
             k = state.k_hinge[s, i]
             ii = state.inv_inertia[s, i]
             x_th = th - th0                 # deviations from the rest angles (eq. 3)
@@ -311,7 +329,7 @@ def integrate_strands(state,
                 clamps += 1
             new_th = th + d_th
             new_ph = ph + d_ph
-            _turn_trig(tr, d_th, d_ph)          # no sin or cos call: |d| <= MAX_TURN
+            tr = _turn_trig(tr, d_th, d_ph)     # no sin or cos call: |d| <= MAX_TURN
             dx, dy, dz = _direction_of_trig(C, tr[SIN_TH], tr[COS_TH], tr[SIN_PH], tr[COS_PH])
             ex, ey, ez = px + seg_len * dx, py + seg_len * dy, pz + seg_len * dz
             moved = False
@@ -322,13 +340,14 @@ def integrate_strands(state,
                 # contact: the segment is turned out of the sphere and stopped there
                 inv = 1.0 / seg_len
                 new_th, new_ph = _angles(C, (ex - px) * inv, (ey - py) * inv, (ez - pz) * inv)
-                _store_trig(tr, new_th, new_ph)
+                tr = _trig_of(new_th, new_ph)
                 theta_prev[s, i] = new_th
                 phi_prev[s, i] = new_ph
                 guards += 1
             else:
                 theta_prev[s, i] = th
                 phi_prev[s, i] = new_ph - d_ph
+            trig[s, i, SIN_TH], trig[s, i, COS_TH], trig[s, i, SIN_PH], trig[s, i, COS_PH] = tr
             wrapped = _wrap(new_ph)
             phi_prev[s, i] += wrapped - new_ph
             theta[s, i] = new_th
