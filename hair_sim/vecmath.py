@@ -5,8 +5,10 @@ from math import sqrt
 from numba import njit
 import numpy as np
 
+from hair_sim.kernels import njit_without_refcounts
 
-@njit(cache=True)
+
+@njit_without_refcounts
 def perpendicular_unit(wx, wy, wz, ux, uy, uz, eps):
     """
     Return the unit part of w perpendicular to the unit vector u.
@@ -25,7 +27,7 @@ def perpendicular_unit(wx, wy, wz, ux, uy, uz, eps):
     return ox / n, oy / n, oz / n
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def nearest_on_spheres(x, y, z, spheres):
     """
     Return the radial projection of a point onto the sphere whose surface is nearest.
@@ -48,7 +50,7 @@ def nearest_on_spheres(x, y, z, spheres):
             spheres[bk, 2] + f * (z - spheres[bk, 2]))
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def nearest_on_spheres_many(points, spheres, out):
     """nearest_on_spheres for every row of points (n, 3), into out (n, 3)."""
     for i in range(points.shape[0]):
@@ -57,12 +59,12 @@ def nearest_on_spheres_many(points, spheres, out):
     return out
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _dot(ax, ay, az, bx, by, bz):
     return ax * bx + ay * by + az * bz
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _triangle_distance_sq(p, a, b, c):
     """Squared distance from p to triangle abc (Ericson, Real-Time Collision Detection 5.1.5)."""
     abx, aby, abz = b[0] - a[0], b[1] - a[1], b[2] - a[2]

@@ -14,9 +14,9 @@ position guard that keeps vertices out of spheres. State goes in as namedtuples 
 from collections import namedtuple
 from math import sin, sqrt
 
-from numba import njit
 import numpy as np
 
+from hair_sim.kernels import njit_without_refcounts
 from hair_sim.vecmath import nearest_on_spheres, perpendicular_unit
 
 GUARD_MARGIN = 2e-4          # m: the position guard puts vertices this far outside spheres
@@ -76,14 +76,14 @@ ForceSettings = namedtuple('ForceSettings', ['t', 'gravity', 'wind_on', 'drag_fa
                                              'inter_strip', 'n_scalp'])
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def rotate(R, x, y, z):
     """Return R (x, y, z)."""
     return (R[0, 0] * x + R[0, 1] * y + R[0, 2] * z, R[1, 0] * x + R[1, 1] * y + R[1, 2] * z,
             R[2, 0] * x + R[2, 1] * y + R[2, 2] * z)
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def root_kinematics(head,
                     root_head,
                     spheres_head,
@@ -118,7 +118,7 @@ def root_kinematics(head,
         sphere_vel[k, 2] = v[2] + w[0] * ry - w[1] * rx
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def strand_sphere_masks(root, reach, spheres, masks):
     """Broad phase: bit k of masks[s] is set when sphere k can touch strand s."""
     n_s = root.shape[0]
@@ -138,7 +138,7 @@ def strand_sphere_masks(root, reach, spheres, masks):
     return checked
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _wind_at(x, y, z, t, wind):
     """Return the wind velocity at a point: mean plus the seeded turbulence modes."""
     base = wind.velocity
@@ -154,7 +154,7 @@ def _wind_at(x, y, z, t, wind):
     return wx, wy, wz
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def external_forces(strands,
                     root_acc,
                     gravity,
@@ -222,7 +222,7 @@ def external_forces(strands,
             f_end[s, i, 2] = 0.0
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _remove_inward(f, nx, ny, nz, w):
     """
     Eq. 7: drop the fraction w of the component of force f (in place) along -N.
@@ -238,7 +238,7 @@ def _remove_inward(f, nx, ny, nz, w):
     return 0.0
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _contact_weight(d, r):
     """
     Return how much in contact a point at distance d from a centre is.
@@ -249,7 +249,7 @@ def _contact_weight(d, r):
     return min(1.0, max(0.0, (r + CONTACT_SKIN - d) / (CONTACT_SKIN - GUARD_MARGIN)))
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _record_contact(contact, s, i, k, c, normal, lever, sphere, load):
     """
     Record a contact of segment i for an implicit model.
@@ -284,7 +284,7 @@ def _record_contact(contact, s, i, k, c, normal, lever, sphere, load):
         contact[s, i, slot + CONTACT_LOAD_MID] = load[1]
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def reaction_constraint_forces(strands,
                                bodies,
                                k_per_m,
@@ -363,15 +363,14 @@ def reaction_constraint_forces(strands,
                     continue
                 nx, ny, nz = qx / dq, qy / dq, qz / dq
                 # input force at Q, interpolated between the segment's two ends
-                fin = np.empty(3)
+                fn = 0.0
                 for a in range(3):
                     f1 = f_dist[s, i, a] + f_end[s, i, a]
                     f0 = 0.0 if i == 0 else f_dist[s, i - 1, a] + f_end[s, i - 1, a]
-                    fin[a] = (1.0 - tt) * f0 + tt * f1
+                    fn += ((1.0 - tt) * f0 + tt * f1) * (nx if a == 0 else ny if a == 1 else nz)
                 vx = (1 - tt) * vel[s, i, 0] + tt * vel[s, i + 1, 0] - sphere_vel[kk, 0]
                 vy = (1 - tt) * vel[s, i, 1] + tt * vel[s, i + 1, 1] - sphere_vel[kk, 1]
                 vz = (1 - tt) * vel[s, i, 2] + tt * vel[s, i + 1, 2] - sphere_vel[kk, 2]
-                fn = fin[0] * nx + fin[1] * ny + fin[2] * nz
                 w = _contact_weight(dq, r)
                 mag = -w * min(fn, 0.0) + k * max(r - dq, 0.0) - w * c * (
                     vx * nx + vy * ny + vz * nz)                               # eq. 10
@@ -385,7 +384,7 @@ def reaction_constraint_forces(strands,
     return contacts
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _wall_sd(pos, px, py, pz, a, b, j):
     """wall_signed_distance with Q's scalp projection (px, py, pz) given."""
     n_v = pos.shape[1]
@@ -409,7 +408,7 @@ def _wall_sd(pos, px, py, pz, a, b, j):
     return rx * nx + ry * ny + rz * nz, nx, ny, nz, along
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def wall_signed_distance(pos, scalp, a, b, j):
     """
     Signed distance of vertex j of strand a from strand b's projected wall (thesis 5.2).
@@ -422,7 +421,7 @@ def wall_signed_distance(pos, scalp, a, b, j):
     return _wall_sd(pos, px, py, pz, a, b, j)
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def strip_springs(strands,
                   scalp,
                   springs,
@@ -504,7 +503,7 @@ def strip_springs(strands,
     return inserted
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _end_cone(sx, sy, sz, r, seg_len, margin):
     """
     Return (u, kappa) of the cone a segment's end direction must keep out of.
@@ -518,7 +517,7 @@ def _end_cone(sx, sy, sz, r, seg_len, margin):
     return -sx / D, -sy / D, -sz / D, (D * D + seg_len * seg_len - rr * rr) / (2.0 * seg_len * D)
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def guard_segment(start, end, seg_len, spheres, mask, margin=GUARD_MARGIN):
     """
     Position guard: turn the segment p->e (length l) so no vertex ends inside a sphere.
@@ -614,7 +613,39 @@ def guard_segment(start, end, seg_len, spheres, mask, margin=GUARD_MARGIN):
     return ex, ey, ez, moved
 
 
-@njit(cache=True)
+@njit_without_refcounts
+def _crease_cone(start, spheres, k, seg_len, margin, mask):
+    """
+    Return (u, kappa) of sphere k's cone for _end_out_of_a_crease; kappa 2: no constraint.
+
+    Spheres out of the mask, holding the start, or that the end cannot reach constrain
+    nothing.
+    """
+    if not (mask >> np.int64(k)) & np.int64(1):
+        return 0.0, 0.0, 0.0, 2.0
+    px, py, pz = start
+    sx, sy, sz = px - spheres[k, 0], py - spheres[k, 1], pz - spheres[k, 2]
+    D = sqrt(sx * sx + sy * sy + sz * sz)
+    r = spheres[k, 3]
+    if D < r - START_INSIDE or D < 1e-12:
+        return 0.0, 0.0, 0.0, 2.0
+    ux, uy, uz, kappa = _end_cone(sx, sy, sz, r, seg_len, margin)
+    if kappa <= -1.0:
+        return 0.0, 0.0, 0.0, 2.0          # the end cannot reach this sphere
+    return ux, uy, uz, min(kappa, 1.0)
+
+
+@njit_without_refcounts
+def _outside_every_cone(cx, cy, cz, start, spheres, seg_len, margin, mask):
+    """Return whether direction c keeps the end out of every sphere's cone (1e-12 slack)."""
+    for k in range(spheres.shape[0]):
+        ux, uy, uz, kap = _crease_cone(start, spheres, k, seg_len, margin, mask)
+        if kap < 1.5 and cx * ux + cy * uy + cz * uz > kap + 1e-12:
+            return False
+    return True
+
+
+@njit_without_refcounts
 def _end_out_of_a_crease(start, end, seg_len, spheres, mask, margin):
     """
     Return the end p + l d nearest the given one with d outside every sphere's cone.
@@ -623,83 +654,63 @@ def _end_out_of_a_crease(start, end, seg_len, spheres, mask, margin):
     allowed directions are the unit sphere less some caps. The nearest allowed direction
     lies on one cap's rim or where two rims cross: every such candidate is tried and the
     nearest that every cap allows is taken (the end is left alone if none is).
-    Spheres that hold the start are left out, as in guard_segment.
+    Spheres that hold the start are left out, as in guard_segment. The cones are worked
+    out where they are needed (_crease_cone), not kept: this rare path allocates nothing.
     """
     px, py, pz = start
     ex, ey, ez = end
     n = spheres.shape[0]
-    u = np.zeros((n, 3))
-    kap = np.full(n, 2.0)                  # 2: no constraint
-    for k in range(n):
-        if not (mask >> np.int64(k)) & np.int64(1):
-            continue
-        sx, sy, sz = px - spheres[k, 0], py - spheres[k, 1], pz - spheres[k, 2]
-        D = sqrt(sx * sx + sy * sy + sz * sz)
-        r = spheres[k, 3]
-        if D < r - START_INSIDE or D < 1e-12:
-            continue
-        u[k, 0], u[k, 1], u[k, 2], kappa = _end_cone(sx, sy, sz, r, seg_len, margin)
-        if kappa <= -1.0:
-            continue                       # the end cannot reach this sphere
-        kap[k] = min(kappa, 1.0)
     dx, dy, dz = (ex - px) / seg_len, (ey - py) / seg_len, (ez - pz) / seg_len
-    inside = False
-    for k in range(n):
-        if kap[k] < 1.5 and dx * u[k, 0] + dy * u[k, 1] + dz * u[k, 2] > kap[k] + 1e-12:
-            inside = True
-    if not inside:
+    if _outside_every_cone(dx, dy, dz, start, spheres, seg_len, margin, mask):
         return ex, ey, ez
     best = -2.0
     bx, by, bz = dx, dy, dz
     for a in range(n):
-        if kap[a] > 1.5:
+        uax, uay, uaz, kap_a = _crease_cone(start, spheres, a, seg_len, margin, mask)
+        if kap_a > 1.5:
             continue
         for b in range(a, n):
-            if kap[b] > 1.5:
+            ubx, uby, ubz, kap_b = _crease_cone(start, spheres, b, seg_len, margin, mask)
+            if kap_b > 1.5:
                 continue
             for sign in range(2):
                 if a == b:
                     if sign == 1:
                         break
                     # the nearest point of cap a's rim
-                    ox, oy, oz = perpendicular_unit(dx, dy, dz, u[a, 0], u[a, 1], u[a, 2], 1e-12)
-                    sk = sqrt(max(0.0, 1.0 - kap[a] * kap[a]))
-                    cx = kap[a] * u[a, 0] + sk * ox
-                    cy = kap[a] * u[a, 1] + sk * oy
-                    cz = kap[a] * u[a, 2] + sk * oz
+                    ox, oy, oz = perpendicular_unit(dx, dy, dz, uax, uay, uaz, 1e-12)
+                    sk = sqrt(max(0.0, 1.0 - kap_a * kap_a))
+                    cx = kap_a * uax + sk * ox
+                    cy = kap_a * uay + sk * oy
+                    cz = kap_a * uaz + sk * oz
                 else:
                     # d = al u_a + be u_b + ga (u_a x u_b) on both rims
-                    c = u[a, 0] * u[b, 0] + u[a, 1] * u[b, 1] + u[a, 2] * u[b, 2]
+                    c = uax * ubx + uay * uby + uaz * ubz
                     det = 1.0 - c * c
                     if det < 1e-12:
                         break
-                    al = (kap[a] - c * kap[b]) / det
-                    be = (kap[b] - c * kap[a]) / det
-                    wx = al * u[a, 0] + be * u[b, 0]
-                    wy = al * u[a, 1] + be * u[b, 1]
-                    wz = al * u[a, 2] + be * u[b, 2]
+                    al = (kap_a - c * kap_b) / det
+                    be = (kap_b - c * kap_a) / det
+                    wx = al * uax + be * ubx
+                    wy = al * uay + be * uby
+                    wz = al * uaz + be * ubz
                     rest = 1.0 - (wx * wx + wy * wy + wz * wz)
                     if rest < 0.0:
                         break                      # the rims do not cross
-                    nx = u[a, 1] * u[b, 2] - u[a, 2] * u[b, 1]
-                    ny = u[a, 2] * u[b, 0] - u[a, 0] * u[b, 2]
-                    nz = u[a, 0] * u[b, 1] - u[a, 1] * u[b, 0]
+                    nx = uay * ubz - uaz * uby
+                    ny = uaz * ubx - uax * ubz
+                    nz = uax * uby - uay * ubx
                     ga = sqrt(rest / det) * (1.0 if sign == 0 else -1.0)
                     cx, cy, cz = wx + ga * nx, wy + ga * ny, wz + ga * nz
-                ok = True
-                for k in range(n):
-                    if kap[k] < 1.5 and \
-                            cx * u[k, 0] + cy * u[k, 1] + cz * u[k, 2] > kap[k] + 1e-12:
-                        ok = False
-                        break
                 near = cx * dx + cy * dy + cz * dz
-                if ok and near > best:
+                if near > best and \
+                        _outside_every_cone(cx, cy, cz, start, spheres, seg_len, margin, mask):
                     best = near
                     bx, by, bz = cx, cy, cz
     return px + seg_len * bx, py + seg_len * by, pz + seg_len * bz
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def guard_rest_shape(rest, spheres):
     """
     Make a rest shape (head frame) consistent with the position guard, in place.

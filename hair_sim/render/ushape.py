@@ -27,7 +27,7 @@ Projection = namedtuple('Projection', ['scalp', 'centre', 'rs', 'delta', 'max_di
                                        'fix_len'])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def tangent_point(ax, ay, az, bx, by, bz, o, rs):
     """
     Return A' on sphere S (centre o, radius rs) for the pair (A, B), fig. 3.6.
@@ -52,7 +52,7 @@ def tangent_point(ax, ay, az, bx, by, bz, o, rs):
             az + t * (cb * uz - sb * yz))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _inside_scalp_by(x, y, z, scalp, depth):
     for k in range(scalp.shape[0]):
         dx, dy, dz = x - scalp[k, 0], y - scalp[k, 1], z - scalp[k, 2]
@@ -62,7 +62,7 @@ def _inside_scalp_by(x, y, z, scalp, depth):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def project_to_scalp(a, target, scalp, delta, spans):
     """
     Bisect from A (outside) towards A' (inside) until |XY| <= delta (thesis 3.2).
@@ -164,6 +164,23 @@ def tessellate_strips(pos, strip_strands, strips, along, across, out_grid):
 
 
 @njit(cache=True)
+def _point(grid, k, c, r):
+    """
+    Return grid[k, c, r] as a tuple (x, y, z).
+
+    A view of the array per row would cost an atomic reference-count pair each (numba's
+    runtime); the kernels here pass points as tuples.
+    """
+    return grid[k, c, r, 0], grid[k, c, r, 1], grid[k, c, r, 2]
+
+
+@njit(cache=True)
+def _vertex(pos, s, j):
+    """Return pos[s, j] as a tuple (x, y, z) (see _point)."""
+    return pos[s, j, 0], pos[s, j, 1], pos[s, j, 2]
+
+
+@njit(cache=True)
 def strip_normal(left, right, left_prev, right_prev, left_next, right_next):
     """
     Return the unit normal AB x AC of a strip's row (0 if degenerate), thesis 3.1.
@@ -216,9 +233,9 @@ def ushape(grid,
         for r in range(R):
             # one normal per row, for both walls
             r0, r1 = max(r - 1, 0), min(r + 1, R - 1)
-            nx, ny, nz = strip_normal(grid[k, 0, r], grid[k, C - 1, r],
-                                      grid[k, 0, r0], grid[k, C - 1, r0],
-                                      grid[k, 0, r1], grid[k, C - 1, r1])
+            nx, ny, nz = strip_normal(_point(grid, k, 0, r), _point(grid, k, C - 1, r),
+                                      _point(grid, k, 0, r0), _point(grid, k, C - 1, r0),
+                                      _point(grid, k, 0, r1), _point(grid, k, C - 1, r1))
             nx, ny, nz = sg * nx, sg * ny, sg * nz              # towards the scalp side
             for side in range(2):
                 ca = 0 if side == 0 else C - 1
@@ -269,8 +286,9 @@ def strip_wall_bottoms(pos,
     for j in range(rows[0], rows[1] + 1):
         # the strip normal AB x AC with A the left edge, as ushape() takes it; one a row
         j0, j1 = max(j - 1, 0), min(j + 1, V - 1)
-        nx, ny, nz = strip_normal(pos[l0, j], pos[l1, j], pos[l0, j0], pos[l1, j0],
-                                  pos[l0, j1], pos[l1, j1])
+        nx, ny, nz = strip_normal(_vertex(pos, l0, j), _vertex(pos, l1, j),
+                                  _vertex(pos, l0, j0), _vertex(pos, l1, j0),
+                                  _vertex(pos, l0, j1), _vertex(pos, l1, j1))
         nx, ny, nz = sigma_s * nx, sigma_s * ny, sigma_s * nz
         for side in range(2):
             a = l0 if side == 0 else l1

@@ -25,9 +25,9 @@ not the mechanics of a chain (see solvers/articulated.py).
 from collections import namedtuple
 from math import acos, atan2, cos, pi, sin, sqrt
 
-from numba import njit
 import numpy as np
 
+from hair_sim.kernels import njit_without_refcounts
 from hair_sim.physics.compiled_call import CompiledCall
 from hair_sim.physics.forces import (explicit_stability_problem, external_forces, GUARD_MOVES,
                                      guard_segment, MAX_RATE, MIN_SIN_THETA,
@@ -53,7 +53,7 @@ AnjyoState = namedtuple('AnjyoState', ['theta', 'phi', 'theta_prev', 'phi_prev',
 SIN_TH, COS_TH, SIN_PH, COS_PH = 0, 1, 2, 3
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _wrap(a):
     """Wrap an angle difference into (-pi, pi]."""
     while a > pi:
@@ -63,7 +63,7 @@ def _wrap(a):
     return a
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _chart_of(chart, s, i):
     """
     Return the chart of segment (s, i) as a tuple of its rows (x, y, z), row by row.
@@ -78,7 +78,7 @@ def _chart_of(chart, s, i):
             chart[s, i, 2, 0], chart[s, i, 2, 1], chart[s, i, 2, 2])
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _put_chart(chart, s, i, C):
     """Write the chart tuple C (see _chart_of) into chart[s, i]."""
     for r in range(3):
@@ -86,14 +86,14 @@ def _put_chart(chart, s, i, C):
             chart[s, i, r, c] = C[3 * r + c]
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _angles(C, dx, dy, dz):
     """Return (theta, phi) of unit direction d in chart C."""
     th, ph, _ = _angles_cos(C, dx, dy, dz)
     return th, ph
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _angles_cos(C, dx, dy, dz):
     """Return (theta, phi, cos(theta)) of unit direction d in chart C."""
     cz = C[6] * dx + C[7] * dy + C[8] * dz
@@ -103,13 +103,13 @@ def _angles_cos(C, dx, dy, dz):
     return acos(cz), atan2(cy, cx), cz
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _direction(C, th, ph):
     """Return the unit direction of angles (theta, phi) in chart C."""
     return _direction_of_trig(C, sin(th), cos(th), sin(ph), cos(ph))
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _direction_of_trig(C, st, ct, sp, cp):
     """Return the unit direction in chart C whose angles have these sines and cosines."""
     a = st * cp
@@ -119,7 +119,7 @@ def _direction_of_trig(C, st, ct, sp, cp):
             a * C[2] + b * C[5] + ct * C[8])
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _rechart(C, dx, dy, dz, rx, ry, rz):
     """Return chart C re-centred so that d and the rest direction r lie on its equator."""
     zx = dy * rz - dz * ry
@@ -137,13 +137,13 @@ def _rechart(C, dx, dy, dz, rx, ry, rz):
             zx, zy, zz)
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _trig_of(th, ph):
     """Return (sin theta, cos theta, sin phi, cos phi) of the angles."""
     return sin(th), cos(th), sin(ph), cos(ph)
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _sin_cos_small(d):
     """
     Return (sin d, cos d) for |d| <= MAX_TURN by their Taylor series, to rounding.
@@ -158,7 +158,7 @@ def _sin_cos_small(d):
     return sn, cs
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _turn_trig(trig, d_th, d_ph):
     """Return trig (sines and cosines of theta, phi) turned by (d_th, d_ph): sums of angles."""
     sa, ca = _sin_cos_small(d_th)
@@ -167,7 +167,7 @@ def _turn_trig(trig, d_th, d_ph):
     return st * ca + ct * sa, ct * ca - st * sa, sp * cb + cp * sb, cp * cb - sp * sb
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def init_charts(directions, chart, theta, phi, trig):
     """Set each segment's chart so its direction sits at theta = pi/2, phi = 0."""
     n_s, n_seg = theta.shape
@@ -181,7 +181,7 @@ def init_charts(directions, chart, theta, phi, trig):
                 _trig_of(theta[s, i], phi[s, i])
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def rotate_charts(chart, R):
     """Rotate every chart by R (a teleport: the hair turns rigidly with the head)."""
     n_s, n_seg = chart.shape[0], chart.shape[1]
@@ -194,7 +194,7 @@ def rotate_charts(chart, R):
                 chart[s, i, r, 2] = R[2, 0] * x + R[2, 1] * y + R[2, 2] * z
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _recentre(C, th, ph, thp, php, cos_th, rest):
     """
     Re-centre chart C when the segment or its rest direction r nears a pole.
@@ -215,7 +215,7 @@ def _recentre(C, th, ph, thp, php, cos_th, rest):
     return C, th, ph, thp, php, th0, ph0, False
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _moments_of_trig(C, st, ct, sp, cp, seg_len, fd, fe):
     """
     Eq. 4: the moments of the distributed force fd and the end force fe about the start.
@@ -238,7 +238,7 @@ def _moments_of_trig(C, st, ct, sp, cp, seg_len, fd, fe):
     return 0.5 * seg_len * fdt + seg_len * fet, (0.5 * seg_len * fdp + seg_len * fep) * st
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _next_deviation(x, xp, moment, k, inv_i, damping, h, integrator):
     """
     Return the next deviation x+ from the rest angle (eq. 3) of one angle.
@@ -257,7 +257,7 @@ def _next_deviation(x, xp, moment, k, inv_i, damping, h, integrator):
         1.0 + a * W_NEXT + b)
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def integrate_strands(state,
                       strands,
                       forces,
@@ -367,7 +367,7 @@ def integrate_strands(state,
     return n_s * n_seg
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def thesis_substep(state,
                    strands,
                    forces,
@@ -417,7 +417,7 @@ def thesis_substep(state,
     return checks, contacts, walls, segments
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def finite_difference_velocities(pos, pos_prev, h_prev, vel):
     """Vertex velocities (pos - pos_prev) / h_prev: what this model knows of its speed."""
     inv_h = 1.0 / h_prev
