@@ -30,6 +30,7 @@ from math import sqrt
 from numba import njit
 import numpy as np
 
+from hair_sim.kernels import njit_without_refcounts
 from hair_sim.render.ushape import strip_wall_bottoms
 
 MARGIN = 1e-4             # m: every corner ball grows by this much
@@ -61,7 +62,7 @@ def shadow_cones(eye, occ):
     return out
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def ball_in_shadow(x, y, z, rho, eye, cones, k):
     """Return True if the ball (x, y, z; rho) lies in the shadow of sphere k (convex part)."""
     sa = cones[k, 3]
@@ -79,14 +80,14 @@ def ball_in_shadow(x, y, z, rho, eye, cones, k):
     return along >= db * (cones[k, 4] * sqrt(1.0 - sb * sb) + sa * sb)
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _nth_sphere(first, i, n):
     """Return the i-th of n spheres counted on from `first` (wrapping round)."""
     k = first + i
     return k - n if k >= n else k
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _held(work, row, rho, eye, cones, first):
     """Return the sphere whose shadow holds the 4 corners work[row, :12], or -1."""
     n = cones.shape[0]
@@ -103,7 +104,7 @@ def _held(work, row, rho, eye, cones, first):
     return -1
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def quad_in_shadow(work, rho, eye, cones, first):
     """
     Return a sphere that held the bilinear patch of corners work[0, :12], grown by rho.
@@ -145,7 +146,7 @@ def quad_in_shadow(work, rho, eye, cones, first):
     return k
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _set_quad(work, P, s0, Q, s1, j):
     """work[0, :12] = P[s0, j], Q[s1, j], P[s0, j + 1], Q[s1, j + 1] (no array views)."""
     for d in range(3):
@@ -155,7 +156,7 @@ def _set_quad(work, P, s0, Q, s1, j):
         work[0, 9 + d] = Q[s1, j + 1, d]
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _rows_held(pos, strands, bottoms, j0, j1, grow, eye, cones, first):
     """Return the sphere whose shadow holds rows j0..j1 (edges, wall bottoms), or -1."""
     a, b = strands
@@ -192,7 +193,7 @@ def holds_projection_sphere(projection, eye, cones, occ):
     return out
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _held_with_any_walls(pos, strands, rows, grow, projection, shadows, first):
     """
     Return a sphere whose shadow holds rows j0..j1 and every wall they could have, or -1.
@@ -230,7 +231,7 @@ def _held_with_any_walls(pos, strands, rows, grow, projection, shadows, first):
     return -1
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _strip_hidden(pos, strip, walls, grow, shadows, first, work):
     """
     Return a sphere that held the last piece of a hidden strip, or -1 if it may be seen.

@@ -18,6 +18,7 @@ from math import sqrt
 from numba import njit
 import numpy as np
 
+from hair_sim.kernels import njit_without_refcounts
 from hair_sim.vecmath import perpendicular_unit
 
 # How the walls are projected (thesis 3.2): scalp spheres (world), the projection sphere's
@@ -27,7 +28,7 @@ Projection = namedtuple('Projection', ['scalp', 'centre', 'rs', 'delta', 'max_di
                                        'fix_len'])
 
 
-@njit(cache=True, _nrt=False)
+@njit_without_refcounts
 def tangent_point(ax, ay, az, bx, by, bz, o, rs):
     """
     Return A' on sphere S (centre o, radius rs) for the pair (A, B), fig. 3.6.
@@ -52,7 +53,7 @@ def tangent_point(ax, ay, az, bx, by, bz, o, rs):
             az + t * (cb * uz - sb * yz))
 
 
-@njit(cache=True, _nrt=False)
+@njit_without_refcounts
 def _inside_scalp_by(x, y, z, scalp, depth):
     for k in range(scalp.shape[0]):
         dx, dy, dz = x - scalp[k, 0], y - scalp[k, 1], z - scalp[k, 2]
@@ -62,7 +63,7 @@ def _inside_scalp_by(x, y, z, scalp, depth):
     return False
 
 
-@njit(cache=True, _nrt=False)
+@njit_without_refcounts
 def project_to_scalp(a, target, scalp, delta, spans):
     """
     Bisect from A (outside) towards A' (inside) until |XY| <= delta (thesis 3.2).
@@ -137,7 +138,7 @@ def project_to_scalp(a, target, scalp, delta, spans):
     return ax + t * vx, ay + t * vy, az + t * vz
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def tessellate_strips(pos, strip_strands, strips, along, across, out_grid):
     """Refine the simulated net of each listed strip to its (columns, rows, 3) grid."""
     R, V = along.shape
@@ -163,7 +164,7 @@ def tessellate_strips(pos, strip_strands, strips, along, across, out_grid):
                 out_grid[k, c, r, 2] = w0 * ez0 + w1 * ez1
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _point(grid, k, c, r):
     """
     Return grid[k, c, r] as a tuple (x, y, z).
@@ -174,13 +175,13 @@ def _point(grid, k, c, r):
     return grid[k, c, r, 0], grid[k, c, r, 1], grid[k, c, r, 2]
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _vertex(pos, s, j):
     """Return pos[s, j] as a tuple (x, y, z) (see _point)."""
     return pos[s, j, 0], pos[s, j, 1], pos[s, j, 2]
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def strip_normal(left, right, left_prev, right_prev, left_next, right_next):
     """
     Return the unit normal AB x AC of a strip's row (0 if degenerate), thesis 3.1.
@@ -263,7 +264,7 @@ def ushape(grid,
                 out[k, base + R + r, 2] = pz
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def strip_wall_bottoms(pos,
                        strip_strands,
                        s,
