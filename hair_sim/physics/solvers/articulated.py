@@ -88,6 +88,7 @@ from math import atan2, cos, sin, sqrt
 from numba import njit
 import numpy as np
 
+from hair_sim.kernels import njit_without_refcounts
 from hair_sim.physics.forces import (CONTACT_C, CONTACT_FIELDS, CONTACT_K, CONTACT_LEVER,
                                      CONTACT_NX, CONTACT_NY, CONTACT_NZ, CONTACT_SLOTS,
                                      CONTACT_LOAD, CONTACT_LOAD_MID, CONTACT_SPHERE,
@@ -152,17 +153,26 @@ IMPULSE_TOLERANCE = 1e-7
 ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', 'd',
                                        'inertia_axial',
                                        'offset', 'air', 'friction'])
+# step_chains' scratch (chain_scratch): per-chain arrays reused for every strand and step
+ChainScratch = namedtuple('ChainScratch', ['Acc', 'Bcc', 'Mcc', 'pang', 'plin', 'Dinv', 'U_A',
+                                           'U_B', 'u', 'alpha', 'wm', 'theta', 'J', 'B', 'M',
+                                           'S', 'T1', 'T2', 'D', 'e', 'r', 'rc', 'nrm', 'av',
+                                           'w', 't3', 't4', 'y3', 'qa', 'ql', 'E', 'Rnew', 'Q',
+                                           'guarded', 'g_nrm', 'u_imp', 'dw', 'rc_imp',
+                                           'lam_imp', 'c_seg', 'c_lever', 'c_nrm', 'c_bound',
+                                           'c_load', 'c_lam', 'c_fric', 't_fric', 'c_dw',
+                                           'c_dvn'])
 
 
 # ------------------------------------------------------------------ 3x3 helpers
-@njit(cache=True)
+@njit_without_refcounts
 def _skew(a, out):
     out[0, 0], out[0, 1], out[0, 2] = 0.0, -a[2], a[1]
     out[1, 0], out[1, 1], out[1, 2] = a[2], 0.0, -a[0]
     out[2, 0], out[2, 1], out[2, 2] = -a[1], a[0], 0.0
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _cross(a, b, out):
     x = a[1] * b[2] - a[2] * b[1]
     y = a[2] * b[0] - a[0] * b[2]
@@ -170,7 +180,7 @@ def _cross(a, b, out):
     out[0], out[1], out[2] = x, y, z
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _inv_sym3(A, out):
     """Inverse of a symmetric positive definite 3x3 matrix."""
     a, b, c = A[0, 0], A[0, 1], A[0, 2]
@@ -188,7 +198,7 @@ def _inv_sym3(A, out):
     out[2, 2] = (a * d - b * b) * inv
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def exp_so3(wx, wy, wz, out):
     """Rotation matrix Exp([w]) of a rotation vector (Rodrigues)."""
     th2 = wx * wx + wy * wy + wz * wz
@@ -208,7 +218,7 @@ def exp_so3(wx, wy, wz, out):
     out[2, 1] = c1 * wy * wz + s * wx
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _orthonormalize(R):
     """Gram-Schmidt on the columns, z (the rod) first: keep R a rotation under roundoff."""
     zx, zy, zz = R[0, 2], R[1, 2], R[2, 2]
@@ -224,7 +234,7 @@ def _orthonormalize(R):
     R[0, 2], R[1, 2], R[2, 2] = zx, zy, zz
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def twist_free_frame(Rp, rest_rel, R, A):
     """
     Turn R about its own rod axis so that the joint from Rp is a pure bend, in place.
@@ -272,7 +282,7 @@ def twist_free_chains(R, rest_rel, Rh):
             twist_free_frame(Rh if i == 0 else R[s, i - 1], rest_rel[s, i], R[s, i], A)
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def joint_rotation(Rp, rest_rel, Ri, out):
     """Write S = rest_rel^T Rp^T Ri: the joint's rotation from its rest (child from parent)."""
     for a in range(3):
@@ -286,7 +296,7 @@ def joint_rotation(Rp, rest_rel, Ri, out):
             out[a, b] = acc
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _bend_angle(vx, vy, vz):
     """Return (theta, sin theta, f = theta / sin theta) of the bend from z to the unit v."""
     st = sqrt(vx * vx + vy * vy)
@@ -295,7 +305,7 @@ def _bend_angle(vx, vy, vz):
     return t, st, f
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def bend_vector(S):
     """
     Return (e, theta, sin theta) of the bend S: e = theta (z x v) / |z x v|, v = S z.
@@ -308,7 +318,7 @@ def bend_vector(S):
     return (-f * vy, f * vx, 0.0), t, st
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def spring_error(Rp, rest_rel, Ri, out, scratch):
     """Write the bend e of the joint between Rp and Ri (see bend_vector); scratch: S."""
     joint_rotation(Rp, rest_rel, Ri, scratch)
@@ -317,7 +327,7 @@ def spring_error(Rp, rest_rel, Ri, out, scratch):
 
 
 # ------------------------------------------------------------------ the chain step
-@njit(cache=True)
+@njit_without_refcounts
 def _bend_deviation(S, e0, q):
     """
     Write the bend spring's generalised deviation q (child frame): torque -k R q.
@@ -350,7 +360,7 @@ def _bend_deviation(S, e0, q):
     q[2] = S[0, 2] * qx + S[1, 2] * qy + S[2, 2] * qz
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _lock_twist(S, dx, dy, dz):
     """
     Turn the joint's inverse S = D^-1 into that of a 2-DOF joint, in place: no twist.
@@ -369,7 +379,7 @@ def _lock_twist(S, dx, dy, dz):
             S[a, b] -= g[a] * g[b] / q
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _unit_impulse_response(s,
                            i,
                            contact,
@@ -444,7 +454,7 @@ def _unit_impulse_response(s,
     return dvn
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _without_relative_spin(w, parent_w, d):
     """
     Return angular velocity w less its spin about the rod axis d relative to parent_w.
@@ -456,7 +466,7 @@ def _without_relative_spin(w, parent_w, d):
     return w[0] - tw * d[0], w[1] - tw * d[1], w[2] - tw * d[2]
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _stop_inward_motion(s,
                         contacts,
                         chain,
@@ -533,7 +543,7 @@ def _stop_inward_motion(s,
         vel[s, j + 1, 0], vel[s, j + 1, 1], vel[s, j + 1, 2] = vx, vy, vz
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _point_velocity(s,
                     i,
                     lever,
@@ -574,7 +584,7 @@ def _point_velocity(s,
             vz - (head.v[2] + head.w[0] * ry - head.w[1] * rx))
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _speculative_contacts(s,
                           contact,
                           chain,
@@ -718,7 +728,7 @@ def _speculative_contacts(s,
     return n_c
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def fastest_swing(R, omega):
     """
     Return the fastest swing (rad/s) of any rod: its angular velocity across its axis.
@@ -740,7 +750,7 @@ def fastest_swing(R, omega):
     return sqrt(top)
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def step_chains(state,
                 strands,
                 forces,
@@ -751,7 +761,8 @@ def step_chains(state,
                 bodies,
                 collide,
                 h,
-                stats):
+                stats,
+                scratch):
     """
     Advance every strand's chain by h (articulated-body algorithm, see the module text).
 
@@ -769,56 +780,16 @@ def step_chains(state,
     f_dist, f_end, contact = forces.f_dist, forces.f_end, forces.contact
     spheres, masks = bodies.spheres, bodies.masks
     n_s, n_seg = length.shape
-    # per-chain scratch (reused for every strand)
-    Acc = np.zeros((n_seg, 3, 3))          # articulated blocks seen at each joint
-    Bcc = np.zeros((n_seg, 3, 3))
-    Mcc = np.zeros((n_seg, 3, 3))
-    pang = np.zeros((n_seg, 3))
-    plin = np.zeros((n_seg, 3))
-    Dinv = np.zeros((n_seg, 3, 3))
-    U_A = np.zeros((n_seg, 3, 3))
-    U_B = np.zeros((n_seg, 3, 3))
-    u = np.zeros((n_seg, 3))
-    alpha = np.zeros((n_seg, 3))
-    wm = np.zeros((n_seg, 3))             # angular velocities predicted at mid-step
-    theta = np.zeros(n_seg)               # share of the drift before the force
-    J = np.zeros((3, 3))
-    B = np.zeros((3, 3))
-    M = np.zeros((3, 3))
-    S = np.zeros((3, 3))
-    T1 = np.zeros((3, 3))
-    T2 = np.zeros((3, 3))
-    D = np.zeros((3, 3))
-    e = np.zeros(3)
-    r = np.zeros(3)
-    rc = np.zeros(3)
-    nrm = np.zeros(3)
-    av = np.zeros(3)
-    w = np.zeros(3)
-    t3 = np.zeros(3)
-    t4 = np.zeros(3)
-    y3 = np.zeros(3)
-    qa = np.zeros(3)
-    ql = np.zeros(3)
-    E = np.zeros((3, 3))
-    Rnew = np.zeros((3, 3))
-    Q = np.zeros((3, 3))
-    guarded = np.zeros(n_seg, dtype=np.bool_)     # contacts of this step: the guard moved
-    g_nrm = np.zeros((n_seg, 3))                  # ... the end, along g_nrm
-    u_imp = np.zeros((n_seg, 3))
-    dw = np.zeros((n_seg, 3))
-    rc_imp = np.zeros(3)
-    lam_imp = np.zeros(n_seg)
-    c_seg = np.zeros(2 * n_seg * CONTACT_SLOTS, dtype=np.int64)   # the speculative contacts
-    c_lever = np.zeros(2 * n_seg * CONTACT_SLOTS)
-    c_nrm = np.zeros((2 * n_seg * CONTACT_SLOTS, 3))
-    c_bound = np.zeros(2 * n_seg * CONTACT_SLOTS)
-    c_load = np.zeros(2 * n_seg * CONTACT_SLOTS)
-    c_lam = np.zeros(2 * n_seg * CONTACT_SLOTS)          # normal impulses
-    c_fric = np.zeros((2 * n_seg * CONTACT_SLOTS, 3))    # friction impulses
-    t_fric = np.zeros(3)
-    c_dw = np.zeros((2 * n_seg * CONTACT_SLOTS, n_seg, 3))   # their normal responses
-    c_dvn = np.zeros(2 * n_seg * CONTACT_SLOTS)
+    # per-chain scratch (reused for every strand; see chain_scratch)
+    sc = scratch
+    Acc, Bcc, Mcc, pang, plin, Dinv = sc.Acc, sc.Bcc, sc.Mcc, sc.pang, sc.plin, sc.Dinv
+    U_A, U_B, u, alpha, wm, theta, J = sc.U_A, sc.U_B, sc.u, sc.alpha, sc.wm, sc.theta, sc.J
+    B, M, S, T1, T2, D, e, r, rc = sc.B, sc.M, sc.S, sc.T1, sc.T2, sc.D, sc.e, sc.r, sc.rc
+    nrm, av, w, t3, t4, y3, qa, ql = sc.nrm, sc.av, sc.w, sc.t3, sc.t4, sc.y3, sc.qa, sc.ql
+    E, Rnew, Q, guarded, g_nrm, u_imp = sc.E, sc.Rnew, sc.Q, sc.guarded, sc.g_nrm, sc.u_imp
+    dw, rc_imp, lam_imp, c_seg, c_lever = sc.dw, sc.rc_imp, sc.lam_imp, sc.c_seg, sc.c_lever
+    c_nrm, c_bound, c_load, c_lam = sc.c_nrm, sc.c_bound, sc.c_load, sc.c_lam
+    c_fric, t_fric, c_dw, c_dvn = sc.c_fric, sc.t_fric, sc.c_dw, sc.c_dvn
     max_rate = 0.0
     guards = 0
     Rh = head.R
@@ -1318,6 +1289,68 @@ def stiffness_to_hold(frames, length, mass, k, gravity):
     return need
 
 
+def chain_scratch(n_seg):
+    """
+    Return the scratch arrays step_chains works in for strands of n_seg segments.
+
+    Made once per solver and reused every step, so that step_chains allocates nothing
+    and runs without reference counts (hair_sim.kernels). Every array is written before
+    it is read, for each strand.
+    """
+    n_c = 2 * n_seg * CONTACT_SLOTS          # the speculative contacts, at most
+    return ChainScratch(
+        Acc=np.zeros((n_seg, 3, 3)),  # articulated blocks seen at each joint
+        Bcc=np.zeros((n_seg, 3, 3)),
+        Mcc=np.zeros((n_seg, 3, 3)),
+        pang=np.zeros((n_seg, 3)),
+        plin=np.zeros((n_seg, 3)),
+        Dinv=np.zeros((n_seg, 3, 3)),
+        U_A=np.zeros((n_seg, 3, 3)),
+        U_B=np.zeros((n_seg, 3, 3)),
+        u=np.zeros((n_seg, 3)),
+        alpha=np.zeros((n_seg, 3)),
+        wm=np.zeros((n_seg, 3)),  # angular velocities predicted at mid-step
+        theta=np.zeros(n_seg),  # share of the drift before the force
+        J=np.zeros((3, 3)),
+        B=np.zeros((3, 3)),
+        M=np.zeros((3, 3)),
+        S=np.zeros((3, 3)),
+        T1=np.zeros((3, 3)),
+        T2=np.zeros((3, 3)),
+        D=np.zeros((3, 3)),
+        e=np.zeros(3),
+        r=np.zeros(3),
+        rc=np.zeros(3),
+        nrm=np.zeros(3),
+        av=np.zeros(3),
+        w=np.zeros(3),
+        t3=np.zeros(3),
+        t4=np.zeros(3),
+        y3=np.zeros(3),
+        qa=np.zeros(3),
+        ql=np.zeros(3),
+        E=np.zeros((3, 3)),
+        Rnew=np.zeros((3, 3)),
+        Q=np.zeros((3, 3)),
+        guarded=np.zeros(n_seg, dtype=np.bool_),  # contacts of this step: the guard moved
+        g_nrm=np.zeros((n_seg, 3)),  # ... the end, along g_nrm
+        u_imp=np.zeros((n_seg, 3)),
+        dw=np.zeros((n_seg, 3)),
+        rc_imp=np.zeros(3),
+        lam_imp=np.zeros(n_seg),
+        c_seg=np.zeros(n_c, dtype=np.int64),  # the speculative contacts
+        c_lever=np.zeros(n_c),
+        c_nrm=np.zeros((n_c, 3)),
+        c_bound=np.zeros(n_c),
+        c_load=np.zeros(n_c),
+        c_lam=np.zeros(n_c),  # normal impulses
+        c_fric=np.zeros((n_c, 3)),  # friction impulses
+        t_fric=np.zeros(3),
+        c_dw=np.zeros((n_c, n_seg, 3)),  # their normal responses
+        c_dvn=np.zeros(n_c),
+    )
+
+
 class ArticulatedSolver:
     """Thin class over step_chains: orientations, angular velocities, joint constants."""
 
@@ -1344,6 +1377,7 @@ class ArticulatedSolver:
         parents = np.concatenate([np.broadcast_to(np.eye(3), (n_s, 1, 3, 3)),
                                   self.modeled[:, :-1]], axis=1)
         self.rest_rel = np.ascontiguousarray(np.swapaxes(parents, -1, -2) @ self.modeled)
+        self.scratch = chain_scratch(n_seg)
         self.update_material(sim)
 
     def update_material(self, sim):
@@ -1445,6 +1479,7 @@ class ArticulatedSolver:
             sim.params.collisions,
             h,
             sim.stats,
+            self.scratch,
         )
 
     def kinetic_energy(self, sim):
