@@ -1,17 +1,22 @@
 """
-No numba kernel is called with more than 8 positional arguments that are not bundled.
+What every compiled kernel looks like: its arguments bundled, and no reference counting.
 
 Kernels bundle their state and parameters (namedtuples or tuples of arrays) and list one
-argument per line at call sites, like PyElastica's. A fresh process with an empty numba
-cache runs both models and the renderer (so every kernel, nested ones too, is compiled
-and keeps the signatures it was called with); every signature is then read: a bundle is
-a (named) tuple there, anything else counts.
+argument per line at call sites, like PyElastica's: no numba kernel is called with more
+than 8 positional arguments that are not bundled. And no kernel pays numba's atomic
+reference counts (NRT_incref / NRT_decref, see hair_sim.kernels) except the few that
+allocate their scratch once a call. A fresh process with an empty numba cache runs both
+models and the renderer (so every kernel, nested ones too, is compiled and keeps the
+signatures it was called with); every signature and its machine code is then read: a
+bundle is a (named) tuple there, anything else counts.
 """
 
 import json
 import os
 import subprocess
 import sys
+
+import pytest
 
 MAX_UNBUNDLED = 8
 
@@ -42,22 +47,52 @@ for info in pkgutil.walk_packages(hair_sim.__path__, 'hair_sim.'):
         if isinstance(obj, CPUDispatcher) and obj.py_func.__module__ == info.name:
             for signature in obj.signatures:
                 loose = [t for t in signature if not isinstance(t, types.BaseTuple)]
-                rows.append([name, len(loose), str(signature)])
+                asm = obj.inspect_asm(signature)
+                refcounts = asm.count('NRT_incref') + asm.count('NRT_decref')
+                rows.append([name, len(loose), str(signature), refcounts])
 print(json.dumps(rows))
 '''
 
 
-def test_no_kernel_is_called_with_more_than_eight_unbundled_arguments(tmp_path):
-    """Every compiled signature of every kernel in the package, counted."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / 'numba'))
+# Kernels that allocate (their scratch or their result) once a call, so numba counts
+# references in them; none of them runs per strand or per vertex.
+ALLOCATING = {'visible_strips', 'ushape', 'shadow_cones', 'holds_projection_sphere',
+              'culled_triangles', 'filter_head_motion', 'rotation_vector'}
+
+
+@pytest.fixture(scope='module')
+def compiled(tmp_path_factory):
+    """Return (name, unbundled arguments, signature, reference-count calls) per signature."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path_factory.mktemp('numba')))
     out = subprocess.run([sys.executable, '-c', SCAN], env=env, capture_output=True,
                          text=True, timeout=600, check=True).stdout
-    rows = json.loads(out.strip().splitlines()[-1])
-    compiled = {name for name, _, _ in rows}
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def test_no_kernel_is_called_with_more_than_eight_unbundled_arguments(compiled):
+    """Every compiled signature of every kernel in the package, counted."""
+    rows = compiled
+    compiled = {row[0] for row in rows}
     # the scan saw what it is meant to check (it would pass vacuously otherwise)
     for name in ('integrate_strands', 'thesis_substep', 'step_chains', 'external_forces',
                  'reaction_constraint_forces', 'strip_springs', 'filter_head_motion',
                  '_stop_inward_motion', '_recentre', '_moments_of_trig', 'visible_strips'):
         assert name in compiled, name
-    too_long = ['%s: %d unbundled %s' % tuple(row) for row in rows if row[1] > MAX_UNBUNDLED]
+    too_long = ['%s: %d unbundled %s' % tuple(row[:3]) for row in rows
+                if row[1] > MAX_UNBUNDLED]
     assert not too_long, too_long
+
+
+def test_no_kernel_but_the_allocating_ones_counts_references(compiled):
+    """The per-frame kernels' machine code has no NRT_incref / NRT_decref call in it."""
+    names = {row[0] for row in compiled}
+    # the scan saw the per-frame kernels of both models, the mesh and the culling
+    for name in ('integrate_strands', 'thesis_substep', 'guard_segment', 'step_chains',
+                 '_speculative_contacts', 'external_forces', 'reaction_constraint_forces',
+                 'strip_springs', 'project_to_scalp', 'tessellate_strips', '_strip_hidden'):
+        assert name in names, name
+    counting = sorted('%s: %d reference-count calls in %s' % (row[0], row[3], row[2])
+                      for row in compiled if row[3] and row[0] not in ALLOCATING)
+    assert not counting, counting
+    # and the check can fail: the allocating kernels do count
+    assert any(row[3] for row in compiled if row[0] in ALLOCATING)
