@@ -88,6 +88,34 @@ def targets(r180, r1000):
     return 'Targets: %s.' % '; '.join(out)
 
 
+def same_machine_before(anjyo, articulated):
+    """
+    Return a sentence comparing this run with doc/bench/scale_before.json, if there is one.
+
+    That file is the scale bench of the code before a change, run on the same machine
+    right before this run (its 'commit' names the code): machines of this kind differ by a
+    third from one session to the next, so only a same-machine pair shows a change.
+    """
+    path = os.path.join(BENCH, 'scale_before.json')
+    if not os.path.exists(path):
+        return ''
+    with open(path) as f:
+        before = json.load(f)
+    rows = before['records'] if isinstance(before, dict) else before
+    out = []
+    for model, now in (('anjyo', anjyo), ('articulated', articulated)):
+        for n in (180, 1000):
+            a = next((r for r in rows if r['model'] == model and r['strips'] == n), None)
+            b = next((r for r in now if r['strips'] == n), None)
+            if a and b:
+                out.append('%s %d strips %.0f -> %.0f fps (step %.2f -> %.2f ms)'
+                           % (model, n, a['end_to_end_fps'], b['end_to_end_fps'],
+                              a['physics_step_ms'], b['physics_step_ms']))
+    return ('The same machine with the code of %s (%s), run right before this one: %s.'
+            % (before.get('commit', '?'), before.get('what', 'before'), '; '.join(out))
+            if out else '')
+
+
 def head_fit_section(fit):
     """Return the lines of the head-fitting section (hair_sim_head fit's JSON report)."""
     rows = [dict(region=region, **fit[key]) for region, key in (
@@ -156,6 +184,20 @@ def culling_savings(skip):
     rows = [r for r in skip if 'visibility_test_ms' in r]
     return ', '.join('%+.1f %% on %s' % (-100 * r['saving'], r['style'].split(' (')[0])
                      for r in rows).replace('+-', '-')
+
+
+def culling_verdict(skip):
+    """Return whether culling (test included) saved on every style of this run, and where not."""
+    rows = [r for r in skip if 'visibility_test_ms' in r]
+    worst = min(rows, key=lambda r: r['saving'])
+    if worst['saving'] > 0.0:
+        return ('It costs less than the whole mesh on every style; least on %s (%.1f %%: '
+                'few of its strips are hidden, most of them behind the neck, which does not '
+                'hold the projection sphere, so their rows are projected to be proven '
+                'hidden).' % (worst['style'].split(' (')[0], 100 * worst['saving']))
+    return ('It does not pay on %s here (%+.1f %%).'
+            % (', '.join(r['style'].split(' (')[0] for r in rows if r['saving'] <= 0.0),
+               -100 * worst['saving']))
 
 
 def stress_articulated_section(stress):
@@ -281,7 +323,7 @@ def main():
               'position guard against the spheres; the rest the inter-strip springs, the '
               'wind with its gusts and the contact forces), plus ~0.03 ms of Python; the '
               'U-shape costs ~5 us per strip (a tangent point and a bisection per edge vertex '
-              'and row). %s%s'
+              'and row). %s%s %s'
               % (r180['end_to_end_ms'], r180['end_to_end_fps'], r180['end_to_end_fps'] / 41,
                  100 * 4 * r180['physics_step_ms'] / r180['end_to_end_ms'],
                  r180['physics_step_ms'], 100 * r180['frame_ms'] / r180['end_to_end_ms'],
@@ -289,7 +331,8 @@ def main():
                  ('At 1000 strips: %.0f fps. ' % r1000['end_to_end_fps']) if r1000 else '',
                  ('The articulated model\'s step costs %.1fx the thesis model\'s at 180 strips '
                   '(%.0f fps end to end).' % (c180['physics_step_ms'] / r180['physics_step_ms'],
-                                              c180['end_to_end_fps'])) if c180 else ''), '']
+                                              c180['end_to_end_fps'])) if c180 else '',
+                 same_machine_before(anjyo, articulated)), '']
     parts += ['### Message sizes: hair_mesh before and after the topology split', '',
               'Before, every HairMesh carried the vertices, UVs, triangles, strip offsets '
               'and ids, and the texture PNG every 30th message. Now `hair_mesh` carries the '
@@ -319,12 +362,10 @@ def main():
               'projection sphere: where a sphere that holds the projection sphere shadows two '
               'rows grown by the fix-up length, their walls are hidden whatever they turn out '
               'to be, and only the other rows are projected onto the scalp. The culled mesh, '
-              'test included, against the whole one in this run: %s. Where a style breaks '
-              'even (side_swept_long: 9 of 48 strips hidden, most of their rows behind the '
-              'neck, which does not hold the projection sphere, so they are projected; '
-              'earlier runs gave -0.5 to +2.4 %%), what culling always saves is downstream: '
-              'triangles sent to meshcat and drawn. The test costs %.3f ms on thesis_long.'
-              % (culling_savings(skip), culling_test_ms), '']
+              'test included, against the whole one in this run: %s. %s Downstream, '
+              'culling always saves the triangles sent to meshcat and drawn. The test costs '
+              '%.3f ms on thesis_long.'
+              % (culling_savings(skip), culling_verdict(skip), culling_test_ms), '']
     cases = stress['cases']
     parts += ['## Numerical stability under abuse (`hair_sim_bench stress --json`)', '',
               'Promised: the solver\'s own stability check accepts the parameters at that '
