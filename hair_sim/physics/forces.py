@@ -362,12 +362,14 @@ def reaction_constraint_forces(strands,
                 if dq >= r + CONTACT_SKIN or dq < 1e-12:
                     continue
                 nx, ny, nz = qx / dq, qy / dq, qz / dq
-                # input force at Q, interpolated between the segment's two ends
+                # fn: the input force at Q, interpolated between the segment's two ends,
+                # along N (summed in place of a 3-vector: nothing is allocated per contact)
                 fn = 0.0
                 for a in range(3):
                     f1 = f_dist[s, i, a] + f_end[s, i, a]
                     f0 = 0.0 if i == 0 else f_dist[s, i - 1, a] + f_end[s, i - 1, a]
-                    fn += ((1.0 - tt) * f0 + tt * f1) * (nx if a == 0 else ny if a == 1 else nz)
+                    n_a = nx if a == 0 else (ny if a == 1 else nz)
+                    fn += ((1.0 - tt) * f0 + tt * f1) * n_a
                 vx = (1 - tt) * vel[s, i, 0] + tt * vel[s, i + 1, 0] - sphere_vel[kk, 0]
                 vy = (1 - tt) * vel[s, i, 1] + tt * vel[s, i + 1, 1] - sphere_vel[kk, 1]
                 vz = (1 - tt) * vel[s, i, 2] + tt * vel[s, i + 1, 2] - sphere_vel[kk, 2]
