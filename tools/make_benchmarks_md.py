@@ -101,7 +101,7 @@ def same_machine_before(anjyo, articulated):
         return ''
     with open(path) as f:
         before = json.load(f)
-    rows = before['records'] if isinstance(before, dict) else before
+    rows = before['records']
     out = []
     for model, now in (('anjyo', anjyo), ('articulated', articulated)):
         for n in (180, 1000):
@@ -191,10 +191,8 @@ def culling_verdict(skip):
     rows = [r for r in skip if 'visibility_test_ms' in r]
     worst = min(rows, key=lambda r: r['saving'])
     if worst['saving'] > 0.0:
-        return ('It costs less than the whole mesh on every style; least on %s (%.1f %%: '
-                'few of its strips are hidden, most of them behind the neck, which does not '
-                'hold the projection sphere, so their rows are projected to be proven '
-                'hidden).' % (worst['style'].split(' (')[0], 100 * worst['saving']))
+        return ('It costs less than the whole mesh on every style; least on %s (%.1f %%).'
+                % (worst['style'].split(' (')[0], 100 * worst['saving']))
     return ('It does not pay on %s here (%+.1f %%).'
             % (', '.join(r['style'].split(' (')[0] for r in rows if r['saving'] <= 0.0),
                -100 * worst['saving']))
