@@ -19,7 +19,6 @@ from numba import njit
 import numpy as np
 
 from hair_sim.kernels import njit_without_refcounts
-from hair_sim.vecmath import perpendicular_unit
 
 # How the walls are projected (thesis 3.2): scalp spheres (world), the projection sphere's
 # centre and radius rs (0: a point), the bisection tolerance delta, and the fix-up of a wall
@@ -34,33 +33,33 @@ def tangent_point(ax, ay, az, bx, by, bz, o, rs):
     Return A' on sphere S (centre o, radius rs) for the pair (A, B), fig. 3.6.
 
     With rs = 0 (a point as projection centre, fig. 3.3A) A' is O itself.
+
+    With U = O - A, d = |U| and y the unit part of AB perpendicular to U (in the plane of
+    A, B, O, towards B), AA' makes the angle beta = asin(rs / d) with U, turned away from
+    B, and is as long as the tangent sqrt(d^2 - rs^2). So A' = A + cos^2(beta) U
+    - rs cos(beta) y: written with d^2 and the length of y's unnormalised vector, that is
+    two divisions and one square root (a kernel of every U-shape wall row).
     """
     ux, uy, uz = o[0] - ax, o[1] - ay, o[2] - az
-    d = sqrt(ux * ux + uy * uy + uz * uz)
-    if rs <= 0.0 or d <= rs:
+    dd = ux * ux + uy * uy + uz * uz
+    if rs <= 0.0 or dd <= rs * rs:
         return o[0], o[1], o[2]
-    inv = 1.0 / d
-    ux *= inv
-    uy *= inv
-    uz *= inv
-    # y axis of the local frame: in the plane of A, B, O, perpendicular to AO, towards B
-    yx, yy, yz = perpendicular_unit(bx - ax, by - ay, bz - az, ux, uy, uz, 1e-15)
-    # AA' makes angle beta = asin(rs / d) with AO, turned away from B (-y)
-    sb = rs * inv
-    cb = sqrt(1.0 - sb * sb)
-    t = d * cb                                    # tangent length |AA'| = sqrt(d^2 - rs^2)
-    return (ax + t * (cb * ux - sb * yx), ay + t * (cb * uy - sb * yy),
-            az + t * (cb * uz - sb * yz))
-
-
-@njit_without_refcounts
-def _inside_scalp_by(x, y, z, scalp, depth):
-    for k in range(scalp.shape[0]):
-        dx, dy, dz = x - scalp[k, 0], y - scalp[k, 1], z - scalp[k, 2]
-        r = scalp[k, 3] - depth
-        if dx * dx + dy * dy + dz * dz < r * r:
-            return True
-    return False
+    inv_dd = 1.0 / dd
+    wx, wy, wz = bx - ax, by - ay, bz - az
+    along = (wx * ux + wy * uy + wz * uz) * inv_dd
+    # y, unnormalised: AB less its part along U
+    yx, yy, yz = wx - along * ux, wy - along * uy, wz - along * uz
+    yy2 = yx * yx + yy * yy + yz * yz
+    if yy2 < 1e-30:
+        # AB along AO: any side will do (as vecmath.perpendicular_unit picks it)
+        if abs(ux) < 0.9 * sqrt(dd):
+            yx, yy, yz = 0.0, -uz, uy
+        else:
+            yx, yy, yz = uz, 0.0, -ux
+        yy2 = yx * yx + yy * yy + yz * yz
+    cb2 = (dd - rs * rs) * inv_dd                 # cos^2(beta)
+    f = rs * sqrt(cb2 / yy2)                      # rs cos(beta) / |y|
+    return ax + cb2 * ux - f * yx, ay + cb2 * uy - f * yy, az + cb2 * uz - f * yz
 
 
 @njit_without_refcounts
@@ -79,24 +78,26 @@ def project_to_scalp(a, target, scalp, delta, spans):
     between the points (to rounding).
     """
     ax, ay, az = a
-    if _inside_scalp_by(ax, ay, az, scalp, delta):
-        return ax, ay, az
     vx, vy, vz = target[0] - ax, target[1] - ay, target[2] - az
     vv = vx * vx + vy * vy + vz * vz
-    if vv == 0.0:
-        return ax, ay, az
-    inv_vv = 1.0 / vv
+    inv_vv = 1.0 / vv if vv != 0.0 else 0.0
     for k in range(scalp.shape[0]):
-        # |w + t v|^2 < r^2, w = A - centre: the open interval between the roots
         wx, wy, wz = ax - scalp[k, 0], ay - scalp[k, 1], az - scalp[k, 2]
-        b = wx * vx + wy * vy + wz * vz
+        ww = wx * wx + wy * wy + wz * wz
         r = scalp[k, 3]
-        disc = b * b - vv * (wx * wx + wy * wy + wz * wz - r * r)
+        deep = r - delta
+        if ww < deep * deep:
+            return ax, ay, az                   # deeper than delta inside: its own projection
+        # |w + t v|^2 < r^2, w = A - centre: the open interval between the roots
+        b = wx * vx + wy * vy + wz * vz
+        disc = b * b - vv * (ww - r * r)
         if disc <= 0.0:
             spans[k, 0], spans[k, 1] = 1.0, 0.0          # never inside
         else:
             sq = sqrt(disc)
             spans[k, 0], spans[k, 1] = (-b - sq) * inv_vv, (-b + sq) * inv_vv
+    if vv == 0.0:
+        return ax, ay, az
     # the bisection halves [0, 1] n times, n the first with (2^-n)^2 |AA'|^2 <= delta^2
     width = 1.0
     scale = 1.0                   # 1 / width, a power of two like it: exact
