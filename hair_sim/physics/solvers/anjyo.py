@@ -283,7 +283,7 @@ def integrate_strands(state,
     f_dist, f_end = forces.f_dist, forces.f_end
     spheres, masks = bodies.spheres, bodies.masks
     n_s, n_seg = theta.shape
-    max_rate = 0.0
+    max_sweep = 0.0
     recharts = 0
     guards = 0
     clamps = 0
@@ -354,12 +354,13 @@ def integrate_strands(state,
             phi[s, i] = wrapped
             sn = tr[SIN_TH]
             turn = max(abs(new_th - theta_prev[s, i]), abs(wrapped - phi_prev[s, i]) * sn)
-            rate = turn * seg_len / h
-            if rate > max_rate:
-                max_rate = rate
+            sweep = turn * seg_len      # the end's path this step: its rate is sweep / h
+            if sweep > max_sweep:
+                max_sweep = sweep
             pos[s, i + 1, 0], pos[s, i + 1, 1], pos[s, i + 1, 2] = ex, ey, ez
             px, py, pz = ex, ey, ez
-    stats[MAX_RATE] = max_rate
+    # (one division: x / h is monotone in x, and so is its rounding)
+    stats[MAX_RATE] = max_sweep / h
     stats[RECHARTS] += recharts
     stats[GUARD_MOVES] += guards
     stats[MIN_SIN_THETA] = min(stats[MIN_SIN_THETA], min_sin)
