@@ -289,6 +289,7 @@ def reaction_constraint_forces(strands,
                                bodies,
                                k_per_m,
                                c_per_m,
+                               record_contacts,
                                forces):
     """
     Collision response by reaction constraints (eqs. 7-10) for vertices and segments.
@@ -303,17 +304,23 @@ def reaction_constraint_forces(strands,
     that the torque about the segment's start is the same; a segment whose start already
     touches the sphere (a root on the scalp) is left to that vertex's own test. Returns
     the contacts found.
+
+    With record_contacts each contact is also written to forces.contact (cleared first),
+    for a model that takes contacts implicitly; a model that does not read the record
+    passes False and the kernel leaves it alone (clearing it touched every cache line of a
+    record nine times the size of the forces, each step).
     """
     pos, vel, length = strands.pos, strands.vel, strands.length
     spheres, sphere_vel, masks = bodies.spheres, bodies.sphere_vel, bodies.masks
     f_dist, f_end, contact = forces.f_dist, forces.f_end, forces.contact
     n_s, n_seg = f_dist.shape[0], f_dist.shape[1]
     contacts = 0
-    for s in range(n_s):
-        for i in range(n_seg):
-            for q in range(CONTACT_SLOTS):
-                contact[s, i, q * CONTACT_FIELDS + CONTACT_K] = 0.0
-                contact[s, i, q * CONTACT_FIELDS + CONTACT_C] = 0.0
+    if record_contacts:
+        for s in range(n_s):
+            for i in range(n_seg):
+                for q in range(CONTACT_SLOTS):
+                    contact[s, i, q * CONTACT_FIELDS + CONTACT_K] = 0.0
+                    contact[s, i, q * CONTACT_FIELDS + CONTACT_C] = 0.0
     for s in range(n_s):
         mask = masks[s]
         if mask == 0:
@@ -344,8 +351,9 @@ def reaction_constraint_forces(strands,
                     f_end[s, i, 0] += mag * nx
                     f_end[s, i, 1] += mag * ny
                     f_end[s, i, 2] += mag * nz
-                    _record_contact(contact, s, i, k if d < r else 0.0, w * c, (nx, ny, nz),
-                                    1.0, kk, (load, load_mid))
+                    if record_contacts:
+                        _record_contact(contact, s, i, k if d < r else 0.0, w * c,
+                                        (nx, ny, nz), 1.0, kk, (load, load_mid))
                     contacts += 1
                     continue
                 ax, ay, az = pos[s, i, 0], pos[s, i, 1], pos[s, i, 2]
@@ -379,9 +387,10 @@ def reaction_constraint_forces(strands,
                 f_end[s, i, 0] += tt * mag * nx
                 f_end[s, i, 1] += tt * mag * ny
                 f_end[s, i, 2] += tt * mag * nz
-                load = max(0.0, -w * min(fn, 0.0) + k * max(r - dq, 0.0))
-                _record_contact(contact, s, i, k if dq < r else 0.0, w * c, (nx, ny, nz), tt,
-                                kk, (load, 0.0))
+                if record_contacts:
+                    load = max(0.0, -w * min(fn, 0.0) + k * max(r - dq, 0.0))
+                    _record_contact(contact, s, i, k if dq < r else 0.0, w * c, (nx, ny, nz),
+                                    tt, kk, (load, 0.0))
                 contacts += 1
     return contacts
 

@@ -626,6 +626,7 @@ class HairSimulator:
                 bodies,
                 settings.collision_stiffness,
                 settings.collision_damping,
+                self.solver.uses_contacts,
                 forces,
             )
             c['kernel_calls'] += 1

@@ -66,7 +66,7 @@ def test_reaction_constraint_removes_inward_force_and_pushes_out():
     bodies = forces.Bodies(spheres=spheres, sphere_vel=np.zeros((1, 3)),
                            masks=np.array([1], dtype=np.int64))
     contact = np.zeros((1, 1, forces.CONTACT_SLOTS * forces.CONTACT_FIELDS))
-    n = forces.reaction_constraint_forces(strands, bodies, 2.0, 0.5,
+    n = forces.reaction_constraint_forces(strands, bodies, 2.0, 0.5, True,
                                           forces.Forces(f_dist=f_dist, f_end=f_end,
                                                         contact=contact))
     assert n == 1
@@ -203,7 +203,7 @@ def test_every_contact_of_a_segment_is_recorded_for_the_implicit_solve():
     bodies = forces.Bodies(spheres=head.scalp, sphere_vel=np.zeros((2, 3)),
                            masks=np.array([3], dtype=np.int64))
     contact = np.zeros((1, 1, forces.CONTACT_SLOTS * forces.CONTACT_FIELDS))
-    n = forces.reaction_constraint_forces(strands, bodies, 2.0, 0.5,
+    n = forces.reaction_constraint_forces(strands, bodies, 2.0, 0.5, True,
                                           forces.Forces(f_dist=np.zeros((1, 1, 3)),
                                                         f_end=np.zeros((1, 1, 3)),
                                                         contact=contact))
@@ -214,6 +214,37 @@ def test_every_contact_of_a_segment_is_recorded_for_the_implicit_solve():
     np.testing.assert_allclose(sorted(held[:, forces.CONTACT_LEVER]), [0.5, 1.0], atol=1e-9)
     np.testing.assert_allclose(held[:, forces.CONTACT_NX:forces.CONTACT_NZ + 1],
                                [[0.0, 0.0, 1.0]] * 2, atol=1e-9)
+
+
+def test_without_a_record_the_forces_are_the_same_and_the_record_is_left_alone():
+    """
+    A model that does not read the contact record (the thesis model) skips writing it.
+
+    Vertex and chord contacts on two spheres: the forces and the count are those of the
+    recording call, and the record, filled with a sentinel, is not touched.
+    """
+    start = np.array([0.0, 0.0, 0.1])
+    end = start + [0.04, 0.0, 0.0]
+    head = _crease_head([end, 0.5 * (start + end)], [0.0, 0.0, 1.0], 0.008)
+    pos = np.array([[start, end - [0.0, 0.0, 5e-4]]])           # the end a little inside
+    strands = forces.Strands(pos=pos, pos_prev=pos.copy(), vel=np.full_like(pos, 0.1),
+                             length=np.array([[0.04]]), mass=np.ones((1, 1)))
+    bodies = forces.Bodies(spheres=head.scalp, sphere_vel=np.zeros((2, 3)),
+                           masks=np.array([3], dtype=np.int64))
+    out = {}
+    for record in (True, False):
+        f_dist = np.array([[[0.2, 0.1, -1.0]]])
+        f_end = np.array([[[0.0, 0.3, -0.5]]])
+        contact = np.full((1, 1, forces.CONTACT_SLOTS * forces.CONTACT_FIELDS), 7.0)
+        n = forces.reaction_constraint_forces(strands, bodies, 2.0, 0.5, record,
+                                              forces.Forces(f_dist=f_dist, f_end=f_end,
+                                                            contact=contact))
+        out[record] = (n, f_dist, f_end, contact)
+    assert out[True][0] == out[False][0] == 2
+    np.testing.assert_array_equal(out[True][1], out[False][1])
+    np.testing.assert_array_equal(out[True][2], out[False][2])
+    assert (out[True][3] != 7.0).any()              # the recording call wrote its record
+    assert (out[False][3] == 7.0).all()
 
 
 @pytest.mark.parametrize('radius', [0.005, 0.008, 0.012])

@@ -407,8 +407,9 @@ def thesis_substep(state,
                     settings.t, settings.drag_factor, settings.air_damping, True, forces)
     contacts = 0
     if settings.collisions:
+        # (the record of contacts is for a model that takes them implicitly: not this one)
         contacts = reaction_constraint_forces(strands, bodies, settings.collision_stiffness,
-                                              settings.collision_damping, forces)
+                                              settings.collision_damping, False, forces)
     walls = 0
     if settings.inter_strip and springs[0].pairs.shape[0] > 0:
         walls = strip_springs(strands, bodies.spheres[:settings.n_scalp], springs[0],
