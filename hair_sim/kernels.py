@@ -11,8 +11,16 @@ arithmetic. A kernel compiled with `njit_without_refcounts` emits none of it: it
 the arrays its caller (Python, or another kernel) holds, and so it may not allocate an
 array or return one (numba refuses to compile such a kernel, so this cannot go wrong
 silently). Kernels that allocate keep plain `njit(cache=True)`.
+
+They are also compiled with numba's numpy error model: a float division by zero gives an
+infinity or NaN, as in numpy, instead of a test of the divisor before every division to
+raise ZeroDivisionError as Python would. Nothing relies on that exception: the kernels
+test their divisors where a zero can occur, and a step whose state came out non-finite
+anyway is caught by the simulator's finiteness check of the tips (which sees every NaN,
+since vertices are placed root to tip). Measured at 180 strips: the thesis step 579 ->
+543 us, the U-shape 661 -> 598 us, the same numbers.
 """
 
 from numba import njit
 
-njit_without_refcounts = njit(cache=True, _nrt=False)
+njit_without_refcounts = njit(cache=True, _nrt=False, error_model='numpy')

@@ -124,6 +124,7 @@ class HairRenderer:
         self._vis = np.zeros(self.n_strips, dtype=np.int64)   # visible strips, culling writes
         self._culled = None             # (strips, their triangles) of the last culled mesh
         self._bottoms = np.zeros_like(rest)
+        self._spans = np.empty((len(head.scalp), 2))    # project_to_scalp's scratch
         self._last_key = None
         self._last = None
 
@@ -209,6 +210,7 @@ class HairRenderer:
             projection,
             out,
             flags,
+            self._spans,
         )
         nv, nt = self.lod.verts_per_strip, self.lod.tris_per_strip
         if viewpoint is None:                  # every strip: the topology's arrays

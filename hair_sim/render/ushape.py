@@ -15,7 +15,6 @@ frames.
 from collections import namedtuple
 from math import sqrt
 
-from numba import njit
 import numpy as np
 
 from hair_sim.kernels import njit_without_refcounts
@@ -203,26 +202,27 @@ def strip_normal(left, right, left_prev, right_prev, left_next, right_next):
     return nx / n, ny / n, nz / n
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def ushape(grid,
            sigma,
            strips,
            projection,
            out,
-           flags):
+           flags,
+           spans):
     """
     Write the U-shape vertices of each strip into out (k, verts_per_strip, 3).
 
     Layout per strip: the grid column by column, then the left wall (edge column, its
     projections), then the right wall. sigma[s] = +1 when the strip's AB x AC normal faces
     the scalp side (fixed at rest), -1 otherwise. flags[k, side, r] = 0 projected on the
-    scalp, 1 fixed because too far, 2 fixed because of reverse volume.
+    scalp, 1 fixed because too far, 2 fixed because of reverse volume. spans (n_scalp, 2)
+    is project_to_scalp's scratch.
     """
     scalp, centre, rs, delta = (projection.scalp, projection.centre, projection.rs,
                                 projection.delta)
     max_dist, fix_len = projection.max_dist, projection.fix_len
     K, C, R = grid.shape[0], grid.shape[1], grid.shape[2]
-    spans = np.empty((scalp.shape[0], 2))
     for k in range(K):
         sg = sigma[strips[k]]
         i = 0

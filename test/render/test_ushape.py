@@ -97,7 +97,8 @@ def run_ushape(grid, sigma):
     flags = np.zeros((1, 2, 5), dtype=np.int64)
     projection = ushape.Projection(scalp=scalp, centre=np.array([0.0, 0.0, 0.0]), rs=0.05,
                                    delta=1e-4, max_dist=0.04, fix_len=0.006)
-    ushape.ushape(grid, np.array([sigma]), np.array([0]), projection, out, flags)
+    ushape.ushape(grid, np.array([sigma]), np.array([0]), projection, out, flags,
+                  np.empty((len(projection.scalp), 2)))
     return out, flags
 
 
