@@ -15,9 +15,9 @@ frame, or in the head frame with frame_locked set; DELETEALL before a new layout
 
 import struct
 
-from numba import njit
 import numpy as np
 
+from hair_sim.kernels import njit_without_refcounts
 from hair_sim.sinks.cdr import CdrWriter
 
 TRIANGLE_LIST = 11
@@ -48,9 +48,13 @@ class MarkerLayout:
             self.uv_points = np.ascontiguousarray(full_mesh.uvs[full_mesh.indices.reshape(-1)])
 
 
-@njit(cache=True)
+@njit_without_refcounts
 def _gather_points(vertices, indices, slot, nt3, R, p, out):
-    """Write head-frame points of every strip slot (slot[s] < 0: collapsed onto vertex 0)."""
+    """
+    Write head-frame points of every strip slot (slot[s] < 0: collapsed onto vertex 0).
+
+    indices: the mesh's triangle corners, flat (any integer type).
+    """
     for s in range(slot.shape[0]):
         k = slot[s]
         for q in range(nt3):
@@ -178,15 +182,20 @@ class MarkerEncoder:
         self.texture_id = texture_id
         self.frame_id = frame_id
         nt3 = 3 * layout.tris_per_strip
-        self.points = np.zeros((layout.n_strips * nt3, 3))
+        points = np.zeros((layout.n_strips * nt3, 3))
         uvs = layout.uv_points if layout.uv_points is not None else np.zeros(
-            (len(self.points), 2), np.float32)
-        geo = [(self.points[g[0] * nt3:(g[-1] + 1) * nt3], uvs[g[0] * nt3:(g[-1] + 1) * nt3])
+            (len(points), 2), np.float32)
+        geo = [(points[g[0] * nt3:(g[-1] + 1) * nt3], uvs[g[0] * nt3:(g[-1] + 1) * nt3])
                for g in layout.groups]
         self.offsets = []
         self.template = bytearray(marker_array_cdr(geo, texture_id, texture_png, frame_id,
                                                    0, 0, offsets=self.offsets,
                                                    frame_locked=frame_locked))
+        # each marker's points, as (n, 3) float64 views of the template: a frame's points
+        # are written where they are sent from, not gathered and then copied there
+        self._points = [np.frombuffer(self.template, dtype='<f8', count=3 * n,
+                                      offset=start).reshape(n, 3)
+                        for _, start, n in self.offsets]
         self._slot = np.full(layout.n_strips, -1, dtype=np.int64)
 
     def encode(self, mesh, R, p, sec, nanosec):
@@ -194,17 +203,16 @@ class MarkerEncoder:
         nt3 = 3 * self.layout.tris_per_strip
         self._slot[:] = -1
         self._slot[mesh.strip_ids.astype(np.int64)] = np.arange(mesh.n_strips)
-        _gather_points(mesh.vertices, mesh.indices.reshape(-1).astype(np.int64), self._slot,
-                       nt3, np.ascontiguousarray(R, dtype=np.float64),
-                       np.asarray(p, dtype=np.float64), self.points)
+        indices = mesh.indices.reshape(-1)
+        R = np.ascontiguousarray(R, dtype=np.float64)
+        p = np.asarray(p, dtype=np.float64)
         buf = self.template
-        first = 0
-        for stamps, start, n in self.offsets:
+        for (stamps, _, _), group, points in zip(self.offsets, self.layout.groups,
+                                                 self._points):
             for off in stamps:
                 struct.pack_into('<iI', buf, off, sec, nanosec)
-            view = np.frombuffer(buf, dtype='<f8', count=3 * n, offset=start)
-            view[:] = self.points[first:first + n].reshape(-1)
-            first += n
+            _gather_points(mesh.vertices, indices, self._slot[group[0]:group[-1] + 1], nt3, R,
+                           p, points)
         return bytes(buf)
 
 
