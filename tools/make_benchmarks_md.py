@@ -319,13 +319,14 @@ def main():
               'the time goes: a physics step costs %.2f us per segment (about 60 %% the '
               'integration kernel: the rest direction\'s angles, the implicit update and the '
               'position guard against the spheres; the rest the inter-strip springs, the '
-              'wind with its gusts and the contact forces), plus ~0.03 ms of Python; the '
-              'U-shape costs ~5 us per strip (a tangent point and a bisection per edge vertex '
-              'and row). %s%s %s'
+              'wind with its gusts and the contact forces), plus ~0.07 ms of Python (the '
+              'head pose given before every step, the driver, the kernel call); the '
+              'U-shape costs %.1f us per strip (a tangent point and a bisection per edge '
+              'vertex and row). %s%s %s'
               % (r180['end_to_end_ms'], r180['end_to_end_fps'], r180['end_to_end_fps'] / 41,
                  100 * 4 * r180['physics_step_ms'] / r180['end_to_end_ms'],
                  r180['physics_step_ms'], 100 * r180['frame_ms'] / r180['end_to_end_ms'],
-                 targets(r180, r1000), seg_us,
+                 targets(r180, r1000), seg_us, 1e3 * r180['frame_ms'] / r180['strips'],
                  ('At 1000 strips: %.0f fps. ' % r1000['end_to_end_fps']) if r1000 else '',
                  ('The articulated model\'s step costs %.1fx the thesis model\'s at 180 strips '
                   '(%.0f fps end to end).' % (c180['physics_step_ms'] / r180['physics_step_ms'],
