@@ -49,7 +49,8 @@ W_NEXT, W_NOW, W_PREV = 0.4, 0.3, 0.3
 # trig holds (sin theta, cos theta, sin phi, cos phi) of the current angles: a step
 # computes them for its new angles anyway, and the next step's eq. 4 needs exactly these
 AnjyoState = namedtuple('AnjyoState', ['theta', 'phi', 'theta_prev', 'phi_prev', 'trig',
-                                       'chart', 'rest_dir', 'inv_inertia', 'k_hinge'])
+                                       'chart', 'rest_dir', 'inv_inertia', 'k_hinge',
+                                       'turned'])
 SIN_TH, COS_TH, SIN_PH, COS_PH = 0, 1, 2, 3
 
 
@@ -257,6 +258,87 @@ def _next_deviation(x, xp, moment, k, inv_i, damping, h, integrator):
         1.0 + a * W_NEXT + b)
 
 
+# What the first pass of integrate_strands leaves per segment for the second (the columns
+# of AnjyoState.turned): the angles before and after the step, the turn of phi, the new
+# angles' sines and cosines and the new direction.
+(TURN_TH, TURN_NEW_TH, TURN_NEW_PH, TURN_D_PH, TURN_SIN_TH, TURN_COS_TH, TURN_SIN_PH,
+ TURN_COS_PH, TURN_DX, TURN_DY, TURN_DZ) = range(11)
+TURN_FIELDS = 11
+
+
+@njit_without_refcounts
+def _turn_segments(state,
+                   strands,
+                   forces,
+                   R,
+                   s,
+                   damping,
+                   h,
+                   integrator):
+    """
+    First pass of integrate_strands over strand s: every segment's turn (eqs. 1-6).
+
+    Per segment: re-centre its chart, the moments of eq. 4, the update of eq. 6 (or the
+    implicit variant) and the clamp of the turn; the result goes to state.turned[i]. No
+    segment here depends on another (the forces were computed before the step), so the
+    processor overlaps them; the vertices, which do depend on each other, are placed in
+    the second pass. Returns (re-charts, clamps, smallest sin(theta)).
+    """
+    theta, phi, theta_prev, phi_prev = state.theta, state.phi, state.theta_prev, state.phi_prev
+    chart, rest_dir, trig, out = state.chart, state.rest_dir, state.trig, state.turned
+    length = strands.length
+    f_dist, f_end = forces.f_dist, forces.f_end
+    n_seg = theta.shape[1]
+    recharts = 0
+    clamps = 0
+    min_sin = 1.0
+    for i in range(n_seg):
+        rx, ry, rz = rotate(R, rest_dir[s, i, 0], rest_dir[s, i, 1], rest_dir[s, i, 2])
+        C, th, ph, thp, php, th0, ph0, recharted = _recentre(
+            _chart_of(chart, s, i), theta[s, i], phi[s, i], theta_prev[s, i],
+            phi_prev[s, i], trig[s, i, COS_TH], (rx, ry, rz))
+        if recharted:
+            recharts += 1
+            _put_chart(chart, s, i, C)
+            tr = _trig_of(th, ph)
+        else:
+            tr = (trig[s, i, SIN_TH], trig[s, i, COS_TH], trig[s, i, SIN_PH],
+                  trig[s, i, COS_PH])
+        st = tr[SIN_TH]
+        if st < min_sin:
+            min_sin = st
+        seg_len = length[s, i]
+        m_th, m_ph = _moments_of_trig(C, st, tr[COS_TH], tr[SIN_PH], tr[COS_PH], seg_len,
+                                      (f_dist[s, i, 0], f_dist[s, i, 1], f_dist[s, i, 2]),
+                                      (f_end[s, i, 0], f_end[s, i, 1], f_end[s, i, 2]))
+        k = state.k_hinge[s, i]
+        ii = state.inv_inertia[s, i]
+        x_th = th - th0                 # deviations from the rest angles (eq. 3)
+        x_thp = thp - th0
+        x_ph = _wrap(ph - ph0)
+        x_php = x_ph - _wrap(ph - php)
+        d_th = _next_deviation(x_th, x_thp, m_th, k, ii, damping, h, integrator) - x_th
+        d_ph = _next_deviation(x_ph, x_php, m_ph, k, ii, damping, h, integrator) - x_ph
+        if abs(d_th) > MAX_TURN or abs(d_ph) > MAX_TURN:   # guard: counted, not hidden
+            d_th = min(MAX_TURN, max(-MAX_TURN, d_th))
+            d_ph = min(MAX_TURN, max(-MAX_TURN, d_ph))
+            clamps += 1
+        tr = _turn_trig(tr, d_th, d_ph)     # no sin or cos call: |d| <= MAX_TURN
+        dx, dy, dz = _direction_of_trig(C, tr[SIN_TH], tr[COS_TH], tr[SIN_PH], tr[COS_PH])
+        out[i, TURN_TH] = th
+        out[i, TURN_NEW_TH] = th + d_th
+        out[i, TURN_NEW_PH] = ph + d_ph
+        out[i, TURN_D_PH] = d_ph
+        out[i, TURN_SIN_TH] = tr[SIN_TH]
+        out[i, TURN_COS_TH] = tr[COS_TH]
+        out[i, TURN_SIN_PH] = tr[SIN_PH]
+        out[i, TURN_COS_PH] = tr[COS_PH]
+        out[i, TURN_DX] = dx
+        out[i, TURN_DY] = dy
+        out[i, TURN_DZ] = dz
+    return recharts, clamps, min_sin
+
+
 @njit_without_refcounts
 def integrate_strands(state,
                       strands,
@@ -273,14 +355,15 @@ def integrate_strands(state,
     Advance every segment by eq. 1, from root to tip, and place the vertices.
 
     Per segment: re-centre its chart, the moments of eq. 4, the update of eq. 6 (or the
-    implicit variant), a clamp of the turn (counted), the position guard. stats gets
-    [MAX_RATE] the fastest a segment's end moved about its start (m/s), [RECHARTS],
-    [GUARD_MOVES], [MIN_SIN_THETA] and [TURN_CLAMPS]. Returns the segments updated.
+    implicit variant), a clamp of the turn (counted), the position guard. The turns come
+    first, strand by strand (_turn_segments), then the vertices root to tip with the
+    guard. stats gets [MAX_RATE] the fastest a segment's end moved about its start (m/s),
+    [RECHARTS], [GUARD_MOVES], [MIN_SIN_THETA] and [TURN_CLAMPS]. Returns the segments
+    updated.
     """
     theta, phi, theta_prev, phi_prev = state.theta, state.phi, state.theta_prev, state.phi_prev
-    chart, rest_dir, trig = state.chart, state.rest_dir, state.trig
+    chart, trig, turned = state.chart, state.trig, state.turned
     pos, pos_prev, length = strands.pos, strands.pos_prev, strands.length
-    f_dist, f_end = forces.f_dist, forces.f_end
     spheres, masks = bodies.spheres, bodies.masks
     n_s, n_seg = theta.shape
     max_sweep = 0.0
@@ -289,6 +372,10 @@ def integrate_strands(state,
     clamps = 0
     min_sin = 1.0
     for s in range(n_s):
+        rc, cl, ms = _turn_segments(state, strands, forces, R, s, damping, h, integrator)
+        recharts += rc
+        clamps += cl
+        min_sin = min(min_sin, ms)
         for j in range(n_seg + 1):
             pos_prev[s, j, 0] = pos[s, j, 0]
             pos_prev[s, j, 1] = pos[s, j, 1]
@@ -297,41 +384,14 @@ def integrate_strands(state,
         pos[s, 0, 0], pos[s, 0, 1], pos[s, 0, 2] = px, py, pz
         mask = masks[s] if collide else np.int64(0)
         for i in range(n_seg):
-            rx, ry, rz = rotate(R, rest_dir[s, i, 0], rest_dir[s, i, 1], rest_dir[s, i, 2])
-            C, th, ph, thp, php, th0, ph0, recharted = _recentre(
-                _chart_of(chart, s, i), theta[s, i], phi[s, i], theta_prev[s, i],
-                phi_prev[s, i], trig[s, i, COS_TH], (rx, ry, rz))
-            if recharted:
-                recharts += 1
-                _put_chart(chart, s, i, C)
-                tr = _trig_of(th, ph)
-            else:
-                tr = (trig[s, i, SIN_TH], trig[s, i, COS_TH], trig[s, i, SIN_PH],
-                      trig[s, i, COS_PH])
-            st = tr[SIN_TH]
-            if st < min_sin:
-                min_sin = st
             seg_len = length[s, i]
-            m_th, m_ph = _moments_of_trig(C, st, tr[COS_TH], tr[SIN_PH], tr[COS_PH], seg_len,
-                                          (f_dist[s, i, 0], f_dist[s, i, 1], f_dist[s, i, 2]),
-                                          (f_end[s, i, 0], f_end[s, i, 1], f_end[s, i, 2]))
-            k = state.k_hinge[s, i]
-            ii = state.inv_inertia[s, i]
-            x_th = th - th0                 # deviations from the rest angles (eq. 3)
-            x_thp = thp - th0
-            x_ph = _wrap(ph - ph0)
-            x_php = x_ph - _wrap(ph - php)
-            d_th = _next_deviation(x_th, x_thp, m_th, k, ii, damping, h, integrator) - x_th
-            d_ph = _next_deviation(x_ph, x_php, m_ph, k, ii, damping, h, integrator) - x_ph
-            if abs(d_th) > MAX_TURN or abs(d_ph) > MAX_TURN:   # guard: counted, not hidden
-                d_th = min(MAX_TURN, max(-MAX_TURN, d_th))
-                d_ph = min(MAX_TURN, max(-MAX_TURN, d_ph))
-                clamps += 1
-            new_th = th + d_th
-            new_ph = ph + d_ph
-            tr = _turn_trig(tr, d_th, d_ph)     # no sin or cos call: |d| <= MAX_TURN
-            dx, dy, dz = _direction_of_trig(C, tr[SIN_TH], tr[COS_TH], tr[SIN_PH], tr[COS_PH])
-            ex, ey, ez = px + seg_len * dx, py + seg_len * dy, pz + seg_len * dz
+            new_th = turned[i, TURN_NEW_TH]
+            new_ph = turned[i, TURN_NEW_PH]
+            tr = (turned[i, TURN_SIN_TH], turned[i, TURN_COS_TH], turned[i, TURN_SIN_PH],
+                  turned[i, TURN_COS_PH])
+            ex = px + seg_len * turned[i, TURN_DX]
+            ey = py + seg_len * turned[i, TURN_DY]
+            ez = pz + seg_len * turned[i, TURN_DZ]
             moved = False
             if mask != 0:
                 ex, ey, ez, moved = guard_segment((px, py, pz), (ex, ey, ez), seg_len, spheres,
@@ -339,14 +399,15 @@ def integrate_strands(state,
             if moved:
                 # contact: the segment is turned out of the sphere and stopped there
                 inv = 1.0 / seg_len
-                new_th, new_ph = _angles(C, (ex - px) * inv, (ey - py) * inv, (ez - pz) * inv)
+                new_th, new_ph = _angles(_chart_of(chart, s, i), (ex - px) * inv,
+                                         (ey - py) * inv, (ez - pz) * inv)
                 tr = _trig_of(new_th, new_ph)
                 theta_prev[s, i] = new_th
                 phi_prev[s, i] = new_ph
                 guards += 1
             else:
-                theta_prev[s, i] = th
-                phi_prev[s, i] = new_ph - d_ph
+                theta_prev[s, i] = turned[i, TURN_TH]
+                phi_prev[s, i] = new_ph - turned[i, TURN_D_PH]
             trig[s, i, SIN_TH], trig[s, i, COS_TH], trig[s, i, SIN_PH], trig[s, i, COS_PH] = tr
             wrapped = _wrap(new_ph)
             phi_prev[s, i] += wrapped - new_ph
@@ -480,6 +541,7 @@ class AnjyoSolver:
         self.phi_prev = np.zeros((n_s, n_seg))
         self.trig = np.zeros((n_s, n_seg, 4))
         self.chart = np.zeros((n_s, n_seg, 3, 3))
+        self.turned = np.zeros((n_seg, TURN_FIELDS))     # integrate_strands' scratch
         self.update_material(sim)
 
     def update_material(self, sim):
@@ -495,7 +557,7 @@ class AnjyoSolver:
         return AnjyoState(theta=self.theta, phi=self.phi, theta_prev=self.theta_prev,
                           phi_prev=self.phi_prev, trig=self.trig, chart=self.chart,
                           rest_dir=self.rest_dir, inv_inertia=self.inv_inertia,
-                          k_hinge=self.k_hinge)
+                          k_hinge=self.k_hinge, turned=self.turned)
 
     def place(self, sim, world_dir):
         """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""
