@@ -69,14 +69,19 @@ class CdrWriter:
         return len(ENCAPSULATION) + self.pos + (-self.pos) % align
 
     def array(self, arr, align):
-        """Write a sequence: count, then the contiguous bytes; return the bytes' offset."""
+        """
+        Write a sequence: count, then the contiguous bytes; return the bytes' offset.
+
+        The array's memory is joined into the message by bytes(), not copied here first
+        (a frame's vertices are megabytes): leave it unchanged until then.
+        """
         arr = np.ascontiguousarray(arr)
         self.uint32(len(arr))
         if len(arr):
             self._align(align)
         start = len(ENCAPSULATION) + self.pos
         if len(arr):
-            self._raw(arr.tobytes())
+            self._raw(memoryview(arr).cast('B'))
         return start
 
     def octets(self, data):
