@@ -82,7 +82,7 @@ def targets(r180, r1000):
     for r, goal in ((r180, 410), (r1000, 60)):
         if r is None:
             continue
-        out.append('%d strips: %.0f fps against %d, %s' % (
+        out.append('%d strips: %.1f fps against %d, %s' % (
             r['strips'], r['end_to_end_fps'], goal,
             'met' if r['end_to_end_fps'] >= goal else 'missed'))
     return 'Targets: %s.' % '; '.join(out)
