@@ -1,11 +1,56 @@
 """Small numba vector helpers shared by the physics and render kernels."""
 
-from math import sqrt
+from math import copysign, pi, sqrt
 
 from numba import njit
 import numpy as np
 
 from hair_sim.kernels import njit_without_refcounts
+
+
+# atan on |u| <= 0.66 as u + u z P(z) / Q(z), z = u^2: the rational of S. L. Moshier's
+# Cephes library (atan.c, public domain), about 1e-16 relative there
+_ATAN_P = (-8.750608600031904122785e-1, -1.615753718733365076637e1,
+           -7.500855792314704667340e1, -1.228866684490136173410e2,
+           -6.485021904942025371773e1)
+_ATAN_Q = (2.485846490142306297962e1, 1.650270098316988542046e2,
+           4.328810604912902668951e2, 4.853903996359136964868e2,
+           1.945506571482613964425e2)
+_HALF_PI = 0.5 * pi
+_QUARTER_PI = 0.25 * pi
+_PI_TAIL = 1.2246467991473532e-16      # pi - float(pi): the low bits the offsets lose
+
+
+@njit_without_refcounts
+def atan2_vectorizable(y, x):
+    """
+    Return atan2(y, x) for finite y, x, within 2 ulp of libm's, without a branch or call.
+
+    A loop that calls libm's atan2 is not vectorised (the call is opaque to LLVM); this
+    one is selects and arithmetic, so a loop over many angles runs four at a time (AVX2).
+    The ratio of the smaller to the larger of |x|, |y| is reduced to |u| <= 0.66 by
+    atan(t) = pi/4 + atan((t - 1) / (t + 1)), then the octant is restored. Signs follow
+    libm (atan2(+-0, x < 0) = +-pi, atan2(+-0, +0) = +-0) except at (+-0, -0), where this
+    gives +-0 and libm +-pi. Non-finite input gives NaN or a wrong angle, not libm's
+    limits (the kernels take angles of finite unit vectors).
+    """
+    ax = abs(x)
+    ay = abs(y)
+    small = min(ax, ay)
+    large = max(ax, ay)
+    t = small / large if large > 0.0 else 0.0
+    reduced = t > 0.66
+    u = (t - 1.0) / (t + 1.0) if reduced else t
+    z = u * u
+    p = _ATAN_P
+    q = _ATAN_Q
+    num = (((p[0] * z + p[1]) * z + p[2]) * z + p[3]) * z + p[4]
+    den = ((((z + q[0]) * z + q[1]) * z + q[2]) * z + q[3]) * z + q[4]
+    a = u + u * z * num / den
+    a = _QUARTER_PI + (a + 0.25 * _PI_TAIL) if reduced else a
+    a = _HALF_PI - a + 0.5 * _PI_TAIL if ay > ax else a
+    a = pi - a + _PI_TAIL if x < 0.0 else a
+    return copysign(a, y)
 
 
 @njit_without_refcounts

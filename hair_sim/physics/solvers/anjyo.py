@@ -33,7 +33,7 @@ from hair_sim.physics.forces import (explicit_stability_problem, external_forces
                                      guard_segment, MAX_RATE, MIN_SIN_THETA,
                                      reaction_constraint_forces, RECHARTS, root_kinematics,
                                      rotate, strand_sphere_masks, strip_springs, TURN_CLAMPS)
-from hair_sim.vecmath import perpendicular_unit
+from hair_sim.vecmath import atan2_vectorizable, perpendicular_unit
 
 POLE_COS = cos(pi / 4.0)     # re-chart when |cos(theta)| exceeds this (45 deg from a pole)
 MAX_TURN = 0.35              # rad: largest change of theta or phi in one step (guard)
@@ -50,7 +50,7 @@ W_NEXT, W_NOW, W_PREV = 0.4, 0.3, 0.3
 # computes them for its new angles anyway, and the next step's eq. 4 needs exactly these
 AnjyoState = namedtuple('AnjyoState', ['theta', 'phi', 'theta_prev', 'phi_prev', 'trig',
                                        'chart', 'rest_dir', 'inv_inertia', 'k_hinge',
-                                       'turned'])
+                                       'packed', 'turned'])
 SIN_TH, COS_TH, SIN_PH, COS_PH = 0, 1, 2, 3
 
 
@@ -258,85 +258,239 @@ def _next_deviation(x, xp, moment, k, inv_i, damping, h, integrator):
         1.0 + a * W_NEXT + b)
 
 
-# What the first pass of integrate_strands leaves per segment for the second (the columns
-# of AnjyoState.turned): the angles before and after the step, the turn of phi, the new
-# angles' sines and cosines and the new direction.
+# The turns (the first pass of integrate_strands) run BLOCK segments at a time, from a
+# scratch laid out row by row (AnjyoState.packed: one row per input, BLOCK wide) into
+# another (AnjyoState.turned), so that the loop over a block is vectorised (four segments
+# at a time with AVX2): it has no branch, call or reduction LLVM cannot turn into vector
+# code, and its rows sit at constant offsets of two arrays (with runtime row strides, or
+# with the state's arrays read directly, LLVM gave up: too many run-time alias checks).
+# Measured at 180 strips (3240 segments): the turns 224 -> 94 us a step.
+BLOCK = 128
+# rows of AnjyoState.packed: the chart (x, y, z rows), the sines and cosines of the
+# angles, the rest direction in the world, the distributed and end forces, the angles
+# now and before, and the segment's length, hinge stiffness and inverse inertia
+(PACK_C0, PACK_C1, PACK_C2, PACK_C3, PACK_C4, PACK_C5, PACK_C6, PACK_C7, PACK_C8,
+ PACK_SIN_TH, PACK_COS_TH, PACK_SIN_PH, PACK_COS_PH, PACK_RX, PACK_RY, PACK_RZ,
+ PACK_FD_X, PACK_FD_Y, PACK_FD_Z, PACK_FE_X, PACK_FE_Y, PACK_FE_Z,
+ PACK_TH, PACK_PH, PACK_TH_PREV, PACK_PH_PREV, PACK_LEN, PACK_K, PACK_INV_I) = range(29)
+PACK_FIELDS = 29
+# rows of AnjyoState.turned: the angles before and after the step, the turn of phi, the
+# new angles' sines and cosines, the new direction, and 1 where the segment needs the
+# exact path instead (_turn_segment_exactly: a re-chart)
 (TURN_TH, TURN_NEW_TH, TURN_NEW_PH, TURN_D_PH, TURN_SIN_TH, TURN_COS_TH, TURN_SIN_PH,
- TURN_COS_PH, TURN_DX, TURN_DY, TURN_DZ) = range(11)
-TURN_FIELDS = 11
+ TURN_COS_PH, TURN_DX, TURN_DY, TURN_DZ, TURN_EXACT) = range(12)
+TURN_FIELDS = 12
+WRAP_ONCE = 3.0 * pi      # one +-2 pi brings an angle difference below this into (-pi, pi]
 
 
 @njit_without_refcounts
-def _turn_segments(state,
+def _pack_segments(state,
                    strands,
                    forces,
                    R,
-                   s,
-                   damping,
-                   h,
-                   integrator):
+                   j0,
+                   j1):
     """
-    First pass of integrate_strands over strand s: every segment's turn (eqs. 1-6).
+    Copy segments j0 .. j1 (counted over all strands, root to tip) into state.packed.
 
-    Per segment: re-centre its chart, the moments of eq. 4, the update of eq. 6 (or the
-    implicit variant) and the clamp of the turn; the result goes to state.turned[i]. No
-    segment here depends on another (the forces were computed before the step), so the
-    processor overlaps them; the vertices, which do depend on each other, are placed in
-    the second pass. Returns (re-charts, clamps, smallest sin(theta)).
+    Field by field, so that each copy is a loop of its own (the strided reads vectorise);
+    the rest directions are rotated into the world with the head on the way.
     """
-    theta, phi, theta_prev, phi_prev = state.theta, state.phi, state.theta_prev, state.phi_prev
-    chart, rest_dir, trig, out = state.chart, state.rest_dir, state.trig, state.turned
-    length = strands.length
-    f_dist, f_end = forces.f_dist, forces.f_end
-    n_seg = theta.shape[1]
-    recharts = 0
+    packed = state.packed
+    n = j1 - j0
+    chart = state.chart.reshape(-1)[9 * j0:9 * j1]
+    trig = state.trig.reshape(-1)[4 * j0:4 * j1]
+    f_dist = forces.f_dist.reshape(-1)[3 * j0:3 * j1]
+    f_end = forces.f_end.reshape(-1)[3 * j0:3 * j1]
+    rest = state.rest_dir.reshape(-1)[3 * j0:3 * j1]
+    for c in range(9):
+        for j in range(n):
+            packed[(PACK_C0 + c) * BLOCK + j] = chart[9 * j + c]
+    for c in range(4):
+        for j in range(n):
+            packed[(PACK_SIN_TH + c) * BLOCK + j] = trig[4 * j + c]
+    for c in range(3):
+        for j in range(n):
+            packed[(PACK_FD_X + c) * BLOCK + j] = f_dist[3 * j + c]
+            packed[(PACK_FE_X + c) * BLOCK + j] = f_end[3 * j + c]
+    for j in range(n):
+        rx, ry, rz = rotate(R, rest[3 * j], rest[3 * j + 1], rest[3 * j + 2])
+        packed[PACK_RX * BLOCK + j] = rx
+        packed[PACK_RY * BLOCK + j] = ry
+        packed[PACK_RZ * BLOCK + j] = rz
+    theta = state.theta.reshape(-1)[j0:j1]
+    phi = state.phi.reshape(-1)[j0:j1]
+    theta_prev = state.theta_prev.reshape(-1)[j0:j1]
+    phi_prev = state.phi_prev.reshape(-1)[j0:j1]
+    length = strands.length.reshape(-1)[j0:j1]
+    k_hinge = state.k_hinge.reshape(-1)[j0:j1]
+    inv_inertia = state.inv_inertia.reshape(-1)[j0:j1]
+    for j in range(n):
+        packed[PACK_TH * BLOCK + j] = theta[j]
+        packed[PACK_PH * BLOCK + j] = phi[j]
+        packed[PACK_TH_PREV * BLOCK + j] = theta_prev[j]
+        packed[PACK_PH_PREV * BLOCK + j] = phi_prev[j]
+        packed[PACK_LEN * BLOCK + j] = length[j]
+        packed[PACK_K * BLOCK + j] = k_hinge[j]
+        packed[PACK_INV_I * BLOCK + j] = inv_inertia[j]
+
+
+@njit_without_refcounts
+def _wrap_once(a):
+    """_wrap for |a| < WRAP_ONCE: one select each way, no loop (vectorisable)."""
+    a = a - 2.0 * pi if a > pi else a
+    return a + 2.0 * pi if a <= -pi else a
+
+
+@njit_without_refcounts
+def _turn_packed_segments(packed,
+                          turned,
+                          n,
+                          damping,
+                          h,
+                          integrator):
+    """
+    First pass of integrate_strands over one block: every segment's turn (eqs. 1-6).
+
+    Per segment: the rest angles in its chart, the moments of eq. 4, the update of eq. 6
+    (or the implicit variant) and the clamp of the turn, into the rows of `turned`. No
+    segment here depends on another (the forces were computed before the step). A segment
+    whose chart needs re-centring (it or its rest direction within 45 degrees of a pole)
+    is only marked (turned[TURN_EXACT] = 1): _turn_segment_exactly redoes it. Returns
+    (clamps among the unmarked, marked).
+    """
     clamps = 0
-    min_sin = 1.0
-    for i in range(n_seg):
-        rx, ry, rz = rotate(R, rest_dir[s, i, 0], rest_dir[s, i, 1], rest_dir[s, i, 2])
-        C, th, ph, thp, php, th0, ph0, recharted = _recentre(
-            _chart_of(chart, s, i), theta[s, i], phi[s, i], theta_prev[s, i],
-            phi_prev[s, i], trig[s, i, COS_TH], (rx, ry, rz))
-        if recharted:
-            recharts += 1
-            _put_chart(chart, s, i, C)
-            tr = _trig_of(th, ph)
-        else:
-            tr = (trig[s, i, SIN_TH], trig[s, i, COS_TH], trig[s, i, SIN_PH],
-                  trig[s, i, COS_PH])
-        st = tr[SIN_TH]
-        if st < min_sin:
-            min_sin = st
-        seg_len = length[s, i]
-        m_th, m_ph = _moments_of_trig(C, st, tr[COS_TH], tr[SIN_PH], tr[COS_PH], seg_len,
-                                      (f_dist[s, i, 0], f_dist[s, i, 1], f_dist[s, i, 2]),
-                                      (f_end[s, i, 0], f_end[s, i, 1], f_end[s, i, 2]))
-        k = state.k_hinge[s, i]
-        ii = state.inv_inertia[s, i]
+    exact = 0
+    for j in range(n):
+        C = (packed[PACK_C0 * BLOCK + j], packed[PACK_C1 * BLOCK + j],
+             packed[PACK_C2 * BLOCK + j], packed[PACK_C3 * BLOCK + j],
+             packed[PACK_C4 * BLOCK + j], packed[PACK_C5 * BLOCK + j],
+             packed[PACK_C6 * BLOCK + j], packed[PACK_C7 * BLOCK + j],
+             packed[PACK_C8 * BLOCK + j])
+        rx = packed[PACK_RX * BLOCK + j]
+        ry = packed[PACK_RY * BLOCK + j]
+        rz = packed[PACK_RZ * BLOCK + j]
+        # the rest angles (eq. 3): _angles_cos without a call to libm
+        cz = C[6] * rx + C[7] * ry + C[8] * rz
+        cx = C[0] * rx + C[1] * ry + C[2] * rz
+        cy = C[3] * rx + C[4] * ry + C[5] * rz
+        cz = min(1.0, max(-1.0, cz))
+        th0 = atan2_vectorizable(sqrt((1.0 - cz) * (1.0 + cz)), cz)      # acos(cz)
+        ph0 = atan2_vectorizable(cy, cx)
+        st = packed[PACK_SIN_TH * BLOCK + j]
+        ct = packed[PACK_COS_TH * BLOCK + j]
+        sp = packed[PACK_SIN_PH * BLOCK + j]
+        cp = packed[PACK_COS_PH * BLOCK + j]
+        seg_len = packed[PACK_LEN * BLOCK + j]
+        m_th, m_ph = _moments_of_trig(C, st, ct, sp, cp, seg_len,
+                                      (packed[PACK_FD_X * BLOCK + j],
+                                       packed[PACK_FD_Y * BLOCK + j],
+                                       packed[PACK_FD_Z * BLOCK + j]),
+                                      (packed[PACK_FE_X * BLOCK + j],
+                                       packed[PACK_FE_Y * BLOCK + j],
+                                       packed[PACK_FE_Z * BLOCK + j]))
+        k = packed[PACK_K * BLOCK + j]
+        ii = packed[PACK_INV_I * BLOCK + j]
+        th = packed[PACK_TH * BLOCK + j]
+        ph = packed[PACK_PH * BLOCK + j]
         x_th = th - th0                 # deviations from the rest angles (eq. 3)
-        x_thp = thp - th0
-        x_ph = _wrap(ph - ph0)
-        x_php = x_ph - _wrap(ph - php)
+        x_thp = packed[PACK_TH_PREV * BLOCK + j] - th0
+        to_rest = ph - ph0
+        turn_before = ph - packed[PACK_PH_PREV * BLOCK + j]
+        x_ph = _wrap_once(to_rest)
+        x_php = x_ph - _wrap_once(turn_before)
         d_th = _next_deviation(x_th, x_thp, m_th, k, ii, damping, h, integrator) - x_th
         d_ph = _next_deviation(x_ph, x_php, m_ph, k, ii, damping, h, integrator) - x_ph
-        if abs(d_th) > MAX_TURN or abs(d_ph) > MAX_TURN:   # guard: counted, not hidden
-            d_th = min(MAX_TURN, max(-MAX_TURN, d_th))
-            d_ph = min(MAX_TURN, max(-MAX_TURN, d_ph))
-            clamps += 1
-        tr = _turn_trig(tr, d_th, d_ph)     # no sin or cos call: |d| <= MAX_TURN
-        dx, dy, dz = _direction_of_trig(C, tr[SIN_TH], tr[COS_TH], tr[SIN_PH], tr[COS_PH])
-        out[i, TURN_TH] = th
-        out[i, TURN_NEW_TH] = th + d_th
-        out[i, TURN_NEW_PH] = ph + d_ph
-        out[i, TURN_D_PH] = d_ph
-        out[i, TURN_SIN_TH] = tr[SIN_TH]
-        out[i, TURN_COS_TH] = tr[COS_TH]
-        out[i, TURN_SIN_PH] = tr[SIN_PH]
-        out[i, TURN_COS_PH] = tr[COS_PH]
-        out[i, TURN_DX] = dx
-        out[i, TURN_DY] = dy
-        out[i, TURN_DZ] = dz
-    return recharts, clamps, min_sin
+        near_pole = (abs(ct) > POLE_COS) | (abs(cz) > POLE_COS)
+        unwrapped = (abs(to_rest) >= WRAP_ONCE) | (abs(turn_before) >= WRAP_ONCE)
+        redo = near_pole | unwrapped
+        exact += 1 if redo else 0
+        big = (abs(d_th) > MAX_TURN) | (abs(d_ph) > MAX_TURN)   # guard: counted, not hidden
+        clamps += 1 if big & ~redo else 0
+        d_th = min(MAX_TURN, max(-MAX_TURN, d_th)) if big else d_th
+        d_ph = min(MAX_TURN, max(-MAX_TURN, d_ph)) if big else d_ph
+        nst, nct, nsp, ncp = _turn_trig((st, ct, sp, cp), d_th, d_ph)   # |d| <= MAX_TURN
+        dx, dy, dz = _direction_of_trig(C, nst, nct, nsp, ncp)
+        turned[TURN_TH * BLOCK + j] = th
+        turned[TURN_NEW_TH * BLOCK + j] = th + d_th
+        turned[TURN_NEW_PH * BLOCK + j] = ph + d_ph
+        turned[TURN_D_PH * BLOCK + j] = d_ph
+        turned[TURN_SIN_TH * BLOCK + j] = nst
+        turned[TURN_COS_TH * BLOCK + j] = nct
+        turned[TURN_SIN_PH * BLOCK + j] = nsp
+        turned[TURN_COS_PH * BLOCK + j] = ncp
+        turned[TURN_DX * BLOCK + j] = dx
+        turned[TURN_DY * BLOCK + j] = dy
+        turned[TURN_DZ * BLOCK + j] = dz
+        turned[TURN_EXACT * BLOCK + j] = 1.0 if redo else 0.0
+    return clamps, exact
+
+
+@njit_without_refcounts
+def _turn_segment_exactly(state,
+                          strands,
+                          forces,
+                          R,
+                          s,
+                          i,
+                          j,
+                          damping,
+                          h,
+                          integrator):
+    """
+    Turn segment (s, i), slot j of the block, with its chart re-centred if need be.
+
+    The path for the few segments _turn_packed_segments marks; libm's acos and atan2, and
+    _wrap's loops. Writes the rows of state.turned and the sine of theta eqs. 1-6 used
+    (packed[PACK_SIN_TH]). Returns (re-charted, clamped) as 0 or 1.
+    """
+    theta, phi, theta_prev, phi_prev = state.theta, state.phi, state.theta_prev, state.phi_prev
+    chart, rest_dir, trig = state.chart, state.rest_dir, state.trig
+    packed, turned = state.packed, state.turned
+    f_dist, f_end = forces.f_dist, forces.f_end
+    rx, ry, rz = rotate(R, rest_dir[s, i, 0], rest_dir[s, i, 1], rest_dir[s, i, 2])
+    C, th, ph, thp, php, th0, ph0, recharted = _recentre(
+        _chart_of(chart, s, i), theta[s, i], phi[s, i], theta_prev[s, i],
+        phi_prev[s, i], trig[s, i, COS_TH], (rx, ry, rz))
+    if recharted:
+        _put_chart(chart, s, i, C)
+        tr = _trig_of(th, ph)
+    else:
+        tr = (trig[s, i, SIN_TH], trig[s, i, COS_TH], trig[s, i, SIN_PH],
+              trig[s, i, COS_PH])
+    st = tr[SIN_TH]
+    seg_len = strands.length[s, i]
+    m_th, m_ph = _moments_of_trig(C, st, tr[COS_TH], tr[SIN_PH], tr[COS_PH], seg_len,
+                                  (f_dist[s, i, 0], f_dist[s, i, 1], f_dist[s, i, 2]),
+                                  (f_end[s, i, 0], f_end[s, i, 1], f_end[s, i, 2]))
+    k = state.k_hinge[s, i]
+    ii = state.inv_inertia[s, i]
+    x_th = th - th0                 # deviations from the rest angles (eq. 3)
+    x_thp = thp - th0
+    x_ph = _wrap(ph - ph0)
+    x_php = x_ph - _wrap(ph - php)
+    d_th = _next_deviation(x_th, x_thp, m_th, k, ii, damping, h, integrator) - x_th
+    d_ph = _next_deviation(x_ph, x_php, m_ph, k, ii, damping, h, integrator) - x_ph
+    clamped = 0
+    if abs(d_th) > MAX_TURN or abs(d_ph) > MAX_TURN:   # guard: counted, not hidden
+        d_th = min(MAX_TURN, max(-MAX_TURN, d_th))
+        d_ph = min(MAX_TURN, max(-MAX_TURN, d_ph))
+        clamped = 1
+    tr = _turn_trig(tr, d_th, d_ph)     # no sin or cos call: |d| <= MAX_TURN
+    dx, dy, dz = _direction_of_trig(C, tr[SIN_TH], tr[COS_TH], tr[SIN_PH], tr[COS_PH])
+    packed[PACK_SIN_TH * BLOCK + j] = st
+    turned[TURN_TH * BLOCK + j] = th
+    turned[TURN_NEW_TH * BLOCK + j] = th + d_th
+    turned[TURN_NEW_PH * BLOCK + j] = ph + d_ph
+    turned[TURN_D_PH * BLOCK + j] = d_ph
+    turned[TURN_SIN_TH * BLOCK + j] = tr[SIN_TH]
+    turned[TURN_COS_TH * BLOCK + j] = tr[COS_TH]
+    turned[TURN_SIN_PH * BLOCK + j] = tr[SIN_PH]
+    turned[TURN_COS_PH * BLOCK + j] = tr[COS_PH]
+    turned[TURN_DX * BLOCK + j] = dx
+    turned[TURN_DY * BLOCK + j] = dy
+    turned[TURN_DZ * BLOCK + j] = dz
+    return (1 if recharted else 0), clamped
 
 
 @njit_without_refcounts
@@ -355,14 +509,16 @@ def integrate_strands(state,
     Advance every segment by eq. 1, from root to tip, and place the vertices.
 
     Per segment: re-centre its chart, the moments of eq. 4, the update of eq. 6 (or the
-    implicit variant), a clamp of the turn (counted), the position guard. The turns come
-    first, strand by strand (_turn_segments), then the vertices root to tip with the
-    guard. stats gets [MAX_RATE] the fastest a segment's end moved about its start (m/s),
+    implicit variant), a clamp of the turn (counted), the position guard. A block of BLOCK
+    segments (counted over all strands, root to tip) at a time: first their turns
+    (_turn_packed_segments, vectorised; the few it marks by _turn_segment_exactly), then
+    their vertices root to tip with the guard, a strand carried on into the next block.
+    stats gets [MAX_RATE] the fastest a segment's end moved about its start (m/s),
     [RECHARTS], [GUARD_MOVES], [MIN_SIN_THETA] and [TURN_CLAMPS]. Returns the segments
     updated.
     """
     theta, phi, theta_prev, phi_prev = state.theta, state.phi, state.theta_prev, state.phi_prev
-    chart, trig, turned = state.chart, state.trig, state.turned
+    chart, trig, packed, turned = state.chart, state.trig, state.packed, state.turned
     pos, pos_prev, length = strands.pos, strands.pos_prev, strands.length
     spheres, masks = bodies.spheres, bodies.masks
     n_s, n_seg = theta.shape
@@ -371,27 +527,45 @@ def integrate_strands(state,
     guards = 0
     clamps = 0
     min_sin = 1.0
-    for s in range(n_s):
-        rc, cl, ms = _turn_segments(state, strands, forces, R, s, damping, h, integrator)
-        recharts += rc
+    s = 0
+    i = 0
+    px = py = pz = 0.0
+    mask = np.int64(0)
+    for j0 in range(0, n_s * n_seg, BLOCK):
+        n = min(BLOCK, n_s * n_seg - j0)
+        _pack_segments(state, strands, forces, R, j0, j0 + n)
+        cl, exact = _turn_packed_segments(packed, turned, n, damping, h, integrator)
         clamps += cl
-        min_sin = min(min_sin, ms)
-        for j in range(n_seg + 1):
-            pos_prev[s, j, 0] = pos[s, j, 0]
-            pos_prev[s, j, 1] = pos[s, j, 1]
-            pos_prev[s, j, 2] = pos[s, j, 2]
-        px, py, pz = roots[s, 0], roots[s, 1], roots[s, 2]
-        pos[s, 0, 0], pos[s, 0, 1], pos[s, 0, 2] = px, py, pz
-        mask = masks[s] if collide else np.int64(0)
-        for i in range(n_seg):
+        if exact > 0:
+            s_j, i_j = s, i
+            for j in range(n):
+                if turned[TURN_EXACT * BLOCK + j] != 0.0:
+                    rc, cl = _turn_segment_exactly(state, strands, forces, R, s_j, i_j, j,
+                                                   damping, h, integrator)
+                    recharts += rc
+                    clamps += cl
+                i_j += 1
+                if i_j == n_seg:
+                    i_j = 0
+                    s_j += 1
+        for j in range(n):
+            if i == 0:                  # a strand starts: its root, with the head
+                for v in range(n_seg + 1):
+                    pos_prev[s, v, 0] = pos[s, v, 0]
+                    pos_prev[s, v, 1] = pos[s, v, 1]
+                    pos_prev[s, v, 2] = pos[s, v, 2]
+                px, py, pz = roots[s, 0], roots[s, 1], roots[s, 2]
+                pos[s, 0, 0], pos[s, 0, 1], pos[s, 0, 2] = px, py, pz
+                mask = masks[s] if collide else np.int64(0)
+            min_sin = min(min_sin, packed[PACK_SIN_TH * BLOCK + j])
             seg_len = length[s, i]
-            new_th = turned[i, TURN_NEW_TH]
-            new_ph = turned[i, TURN_NEW_PH]
-            tr = (turned[i, TURN_SIN_TH], turned[i, TURN_COS_TH], turned[i, TURN_SIN_PH],
-                  turned[i, TURN_COS_PH])
-            ex = px + seg_len * turned[i, TURN_DX]
-            ey = py + seg_len * turned[i, TURN_DY]
-            ez = pz + seg_len * turned[i, TURN_DZ]
+            new_th = turned[TURN_NEW_TH * BLOCK + j]
+            new_ph = turned[TURN_NEW_PH * BLOCK + j]
+            tr = (turned[TURN_SIN_TH * BLOCK + j], turned[TURN_COS_TH * BLOCK + j],
+                  turned[TURN_SIN_PH * BLOCK + j], turned[TURN_COS_PH * BLOCK + j])
+            ex = px + seg_len * turned[TURN_DX * BLOCK + j]
+            ey = py + seg_len * turned[TURN_DY * BLOCK + j]
+            ez = pz + seg_len * turned[TURN_DZ * BLOCK + j]
             moved = False
             if mask != 0:
                 ex, ey, ez, moved = guard_segment((px, py, pz), (ex, ey, ez), seg_len, spheres,
@@ -406,8 +580,8 @@ def integrate_strands(state,
                 phi_prev[s, i] = new_ph
                 guards += 1
             else:
-                theta_prev[s, i] = turned[i, TURN_TH]
-                phi_prev[s, i] = new_ph - turned[i, TURN_D_PH]
+                theta_prev[s, i] = turned[TURN_TH * BLOCK + j]
+                phi_prev[s, i] = new_ph - turned[TURN_D_PH * BLOCK + j]
             trig[s, i, SIN_TH], trig[s, i, COS_TH], trig[s, i, SIN_PH], trig[s, i, COS_PH] = tr
             wrapped = _wrap(new_ph)
             phi_prev[s, i] += wrapped - new_ph
@@ -420,6 +594,10 @@ def integrate_strands(state,
                 max_sweep = sweep
             pos[s, i + 1, 0], pos[s, i + 1, 1], pos[s, i + 1, 2] = ex, ey, ez
             px, py, pz = ex, ey, ez
+            i += 1
+            if i == n_seg:
+                i = 0
+                s += 1
     # (one division: x / h is monotone in x, and so is its rounding)
     stats[MAX_RATE] = max_sweep / h
     stats[RECHARTS] += recharts
@@ -541,7 +719,8 @@ class AnjyoSolver:
         self.phi_prev = np.zeros((n_s, n_seg))
         self.trig = np.zeros((n_s, n_seg, 4))
         self.chart = np.zeros((n_s, n_seg, 3, 3))
-        self.turned = np.zeros((n_seg, TURN_FIELDS))     # integrate_strands' scratch
+        self.packed = np.zeros(PACK_FIELDS * BLOCK)      # integrate_strands' scratch
+        self.turned = np.zeros(TURN_FIELDS * BLOCK)
         self.update_material(sim)
 
     def update_material(self, sim):
@@ -557,7 +736,7 @@ class AnjyoSolver:
         return AnjyoState(theta=self.theta, phi=self.phi, theta_prev=self.theta_prev,
                           phi_prev=self.phi_prev, trig=self.trig, chart=self.chart,
                           rest_dir=self.rest_dir, inv_inertia=self.inv_inertia,
-                          k_hinge=self.k_hinge, turned=self.turned)
+                          k_hinge=self.k_hinge, packed=self.packed, turned=self.turned)
 
     def place(self, sim, world_dir):
         """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""
