@@ -267,13 +267,12 @@ def _next_deviation(x, xp, moment, k, inv_i, damping, h, integrator):
 # Measured at 180 strips (3240 segments): the turns 224 -> 94 us a step.
 BLOCK = 128
 # rows of AnjyoState.packed: the chart (x, y, z rows), the sines and cosines of the
-# angles, the rest direction in the world, the distributed and end forces, the angles
-# now and before, and the segment's length, hinge stiffness and inverse inertia
+# angles, the rest direction in the world, the distributed and end forces (the inputs
+# stored interleaved; those stored one number a segment are read in place)
 (PACK_C0, PACK_C1, PACK_C2, PACK_C3, PACK_C4, PACK_C5, PACK_C6, PACK_C7, PACK_C8,
  PACK_SIN_TH, PACK_COS_TH, PACK_SIN_PH, PACK_COS_PH, PACK_RX, PACK_RY, PACK_RZ,
- PACK_FD_X, PACK_FD_Y, PACK_FD_Z, PACK_FE_X, PACK_FE_Y, PACK_FE_Z,
- PACK_TH, PACK_PH, PACK_TH_PREV, PACK_PH_PREV, PACK_LEN, PACK_K, PACK_INV_I) = range(29)
-PACK_FIELDS = 29
+ PACK_FD_X, PACK_FD_Y, PACK_FD_Z, PACK_FE_X, PACK_FE_Y, PACK_FE_Z) = range(22)
+PACK_FIELDS = 22
 # rows of AnjyoState.turned: the angles before and after the step, the turn of phi, the
 # new angles' sines and cosines, the new direction, and 1 where the segment needs the
 # exact path instead (_turn_segment_exactly: a re-chart)
@@ -284,25 +283,25 @@ WRAP_ONCE = 3.0 * pi      # one +-2 pi brings an angle difference below this int
 
 
 @njit_without_refcounts
-def _pack_segments(state,
-                   strands,
-                   forces,
+def _pack_segments(interleaved,
+                   packed,
                    R,
                    j0,
                    j1):
     """
-    Copy segments j0 .. j1 (counted over all strands, root to tip) into state.packed.
+    Copy the interleaved inputs of segments j0 .. j1 into the rows of `packed`.
 
-    Field by field, so that each copy is a loop of its own (the strided reads vectorise);
-    the rest directions are rotated into the world with the head on the way.
+    Segments are counted over all strands, root to tip; the inputs are their charts,
+    sines and cosines, forces and rest directions: interleaved is (chart, trig, f_dist,
+    f_end, rest_dir), each flattened. Field by field, so that each copy is a loop of its
+    own; the rest directions are rotated into the world with the head on the way.
     """
-    packed = state.packed
     n = j1 - j0
-    chart = state.chart.reshape(-1)[9 * j0:9 * j1]
-    trig = state.trig.reshape(-1)[4 * j0:4 * j1]
-    f_dist = forces.f_dist.reshape(-1)[3 * j0:3 * j1]
-    f_end = forces.f_end.reshape(-1)[3 * j0:3 * j1]
-    rest = state.rest_dir.reshape(-1)[3 * j0:3 * j1]
+    chart = interleaved[0][9 * j0:9 * j1]
+    trig = interleaved[1][4 * j0:4 * j1]
+    f_dist = interleaved[2][3 * j0:3 * j1]
+    f_end = interleaved[3][3 * j0:3 * j1]
+    rest = interleaved[4][3 * j0:3 * j1]
     for c in range(9):
         for j in range(n):
             packed[(PACK_C0 + c) * BLOCK + j] = chart[9 * j + c]
@@ -318,21 +317,6 @@ def _pack_segments(state,
         packed[PACK_RX * BLOCK + j] = rx
         packed[PACK_RY * BLOCK + j] = ry
         packed[PACK_RZ * BLOCK + j] = rz
-    theta = state.theta.reshape(-1)[j0:j1]
-    phi = state.phi.reshape(-1)[j0:j1]
-    theta_prev = state.theta_prev.reshape(-1)[j0:j1]
-    phi_prev = state.phi_prev.reshape(-1)[j0:j1]
-    length = strands.length.reshape(-1)[j0:j1]
-    k_hinge = state.k_hinge.reshape(-1)[j0:j1]
-    inv_inertia = state.inv_inertia.reshape(-1)[j0:j1]
-    for j in range(n):
-        packed[PACK_TH * BLOCK + j] = theta[j]
-        packed[PACK_PH * BLOCK + j] = phi[j]
-        packed[PACK_TH_PREV * BLOCK + j] = theta_prev[j]
-        packed[PACK_PH_PREV * BLOCK + j] = phi_prev[j]
-        packed[PACK_LEN * BLOCK + j] = length[j]
-        packed[PACK_K * BLOCK + j] = k_hinge[j]
-        packed[PACK_INV_I * BLOCK + j] = inv_inertia[j]
 
 
 @njit_without_refcounts
@@ -344,8 +328,8 @@ def _wrap_once(a):
 
 @njit_without_refcounts
 def _turn_packed_segments(packed,
+                          contiguous,
                           turned,
-                          n,
                           damping,
                           h,
                           integrator):
@@ -356,12 +340,14 @@ def _turn_packed_segments(packed,
     (or the implicit variant) and the clamp of the turn, into the rows of `turned`. No
     segment here depends on another (the forces were computed before the step). A segment
     whose chart needs re-centring (it or its rest direction within 45 degrees of a pole)
-    is only marked (turned[TURN_EXACT] = 1): _turn_segment_exactly redoes it. Returns
-    (clamps among the unmarked, marked).
+    is only marked (turned[TURN_EXACT] = 1): _turn_segment_exactly redoes it. contiguous
+    is (theta, phi, theta_prev, phi_prev, length, k_hinge, inv_inertia) of the block's
+    segments. Returns (clamps among the unmarked, marked).
     """
+    theta, phi, theta_prev, phi_prev, length, k_hinge, inv_inertia = contiguous
     clamps = 0
     exact = 0
-    for j in range(n):
+    for j in range(theta.shape[0]):
         C = (packed[PACK_C0 * BLOCK + j], packed[PACK_C1 * BLOCK + j],
              packed[PACK_C2 * BLOCK + j], packed[PACK_C3 * BLOCK + j],
              packed[PACK_C4 * BLOCK + j], packed[PACK_C5 * BLOCK + j],
@@ -381,7 +367,7 @@ def _turn_packed_segments(packed,
         ct = packed[PACK_COS_TH * BLOCK + j]
         sp = packed[PACK_SIN_PH * BLOCK + j]
         cp = packed[PACK_COS_PH * BLOCK + j]
-        seg_len = packed[PACK_LEN * BLOCK + j]
+        seg_len = length[j]
         m_th, m_ph = _moments_of_trig(C, st, ct, sp, cp, seg_len,
                                       (packed[PACK_FD_X * BLOCK + j],
                                        packed[PACK_FD_Y * BLOCK + j],
@@ -389,14 +375,14 @@ def _turn_packed_segments(packed,
                                       (packed[PACK_FE_X * BLOCK + j],
                                        packed[PACK_FE_Y * BLOCK + j],
                                        packed[PACK_FE_Z * BLOCK + j]))
-        k = packed[PACK_K * BLOCK + j]
-        ii = packed[PACK_INV_I * BLOCK + j]
-        th = packed[PACK_TH * BLOCK + j]
-        ph = packed[PACK_PH * BLOCK + j]
+        k = k_hinge[j]
+        ii = inv_inertia[j]
+        th = theta[j]
+        ph = phi[j]
         x_th = th - th0                 # deviations from the rest angles (eq. 3)
-        x_thp = packed[PACK_TH_PREV * BLOCK + j] - th0
+        x_thp = theta_prev[j] - th0
         to_rest = ph - ph0
-        turn_before = ph - packed[PACK_PH_PREV * BLOCK + j]
+        turn_before = ph - phi_prev[j]
         x_ph = _wrap_once(to_rest)
         x_php = x_ph - _wrap_once(turn_before)
         d_th = _next_deviation(x_th, x_thp, m_th, k, ii, damping, h, integrator) - x_th
@@ -531,10 +517,20 @@ def integrate_strands(state,
     i = 0
     px = py = pz = 0.0
     mask = np.int64(0)
+    interleaved = (chart.reshape(-1), trig.reshape(-1), forces.f_dist.reshape(-1),
+                   forces.f_end.reshape(-1), state.rest_dir.reshape(-1))
+    contiguous = (theta.reshape(-1), phi.reshape(-1), theta_prev.reshape(-1),
+                  phi_prev.reshape(-1), length.reshape(-1), state.k_hinge.reshape(-1),
+                  state.inv_inertia.reshape(-1))
     for j0 in range(0, n_s * n_seg, BLOCK):
         n = min(BLOCK, n_s * n_seg - j0)
-        _pack_segments(state, strands, forces, R, j0, j0 + n)
-        cl, exact = _turn_packed_segments(packed, turned, n, damping, h, integrator)
+        j1 = j0 + n
+        _pack_segments(interleaved, packed, R, j0, j1)
+        cl, exact = _turn_packed_segments(packed, (contiguous[0][j0:j1], contiguous[1][j0:j1],
+                                                   contiguous[2][j0:j1], contiguous[3][j0:j1],
+                                                   contiguous[4][j0:j1], contiguous[5][j0:j1],
+                                                   contiguous[6][j0:j1]),
+                                          turned, damping, h, integrator)
         clamps += cl
         if exact > 0:
             s_j, i_j = s, i
