@@ -38,9 +38,11 @@ def atan2_vectorizable(y, x):
     ay = abs(y)
     small = min(ax, ay)
     large = max(ax, ay)
-    t = small / large if large > 0.0 else 0.0
-    reduced = t > 0.66
-    u = (t - 1.0) / (t + 1.0) if reduced else t
+    # t = small / large, and past 0.66 u = (t - 1) / (t + 1), in one division each way
+    reduced = small > 0.66 * large
+    num_u = small - large if reduced else small
+    den_u = small + large if reduced else large
+    u = num_u / den_u if large > 0.0 else 0.0
     z = u * u
     p = _ATAN_P
     q = _ATAN_Q
