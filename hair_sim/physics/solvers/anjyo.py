@@ -15,7 +15,8 @@ result, the next step re-centres before using them.
 Each segment carries the sines and cosines of its angles from step to step (`trig`,
 advanced by the sums of angles with a series for the step's turn, set afresh after a
 re-chart or a guard contact): the moments of eq. 4 and the new direction need no sin or
-cos call; only the rest direction's angles (acos, atan2) are computed every step.
+cos call; only the rest direction's angles are computed every step, by a branch-free
+atan2 in a loop LLVM vectorises (libm's acos and atan2 where a chart is re-centred).
 
 Each segment swings about its start as if that were fixed (the root's acceleration enters
 as an inertial force), with its own inertia only: cheap, and it holds a style, but it is
