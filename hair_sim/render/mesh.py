@@ -124,7 +124,7 @@ class HairRenderer:
         self._vis = np.zeros(self.n_strips, dtype=np.int64)   # visible strips, culling writes
         self._culled = None             # (strips, their triangles) of the last culled mesh
         self._bottoms = np.zeros_like(rest)
-        self._spans = np.empty((len(head.scalp), 2))    # project_to_scalp's scratch
+        self._walls = ushape.wall_scratch(len(head.scalp))    # ushape's scratch
         self._last_key = None
         self._last = None
 
@@ -210,7 +210,7 @@ class HairRenderer:
             projection,
             out,
             flags,
-            self._spans,
+            self._walls,
         )
         nv, nt = self.lod.verts_per_strip, self.lod.tris_per_strip
         if viewpoint is None:                  # every strip: the topology's arrays

@@ -202,6 +202,210 @@ def strip_normal(left, right, left_prev, right_prev, left_next, right_next):
     return nx / n, ny / n, nz / n
 
 
+# The walls of a strip are projected WALL_ROWS rows (2 WALL_ROWS edge vertices A) at a
+# time, phase by phase, each phase a loop over the edges that LLVM vectorises (no call, no
+# early return, rows at constant offsets of a scratch): the tangent point A', the span of
+# A + t (A' - A) inside each scalp sphere, the bisection's width, entry and cover, and the
+# fix-ups. Edges off the usual path (deep inside the scalp, A' = A, AB along AO, or in and
+# out of the scalp again: 278 of 10 800 in a 180-strip demo frame) are marked and projected
+# by tangent_point and project_to_scalp themselves. Every number is computed by the same
+# operations in the same order as there, so the walls are the same to the bit.
+WALL_ROWS = 128
+WALL_EDGES = 2 * WALL_ROWS
+# rows of the scratch: A, B (the row's other edge), the strip normal towards the scalp,
+# V = A' - A, |V|^2 and its inverse, the bisection's entry, cover, width and 1 / width,
+# 1 where the edge takes the exact path, the projection P and its fix-up flag
+(WALL_AX, WALL_AY, WALL_AZ, WALL_BX, WALL_BY, WALL_BZ, WALL_NX, WALL_NY, WALL_NZ,
+ WALL_VX, WALL_VY, WALL_VZ, WALL_VV, WALL_INV_VV, WALL_ENTRY, WALL_COVER, WALL_WIDTH,
+ WALL_SCALE, WALL_EXACT, WALL_PX, WALL_PY, WALL_PZ, WALL_FLAG) = range(23)
+WALL_FIELDS = 23
+
+
+def wall_scratch(n_scalp):
+    """Return the scratch ushape takes: (project_to_scalp's spans, the walls' rows, spans)."""
+    return (np.empty((n_scalp, 2)), np.zeros(WALL_FIELDS * WALL_EDGES),
+            np.zeros(2 * n_scalp * WALL_EDGES))
+
+
+@njit_without_refcounts
+def _tangent_points(walls,
+                    n,
+                    centre,
+                    rs):
+    """
+    Phase of ushape: V = A' - A of every edge (tangent_point's arithmetic), |V|^2, 1/|V|^2.
+
+    Marks AB along AO (tangent_point picks a side by a branch) for the exact path.
+    """
+    ox, oy, oz = centre[0], centre[1], centre[2]
+    for e in range(n):
+        ax = walls[WALL_AX * WALL_EDGES + e]
+        ay = walls[WALL_AY * WALL_EDGES + e]
+        az = walls[WALL_AZ * WALL_EDGES + e]
+        ux, uy, uz = ox - ax, oy - ay, oz - az
+        dd = ux * ux + uy * uy + uz * uz
+        at_centre = (rs <= 0.0) | (dd <= rs * rs)
+        inv_dd = 1.0 / dd
+        wx = walls[WALL_BX * WALL_EDGES + e] - ax
+        wy = walls[WALL_BY * WALL_EDGES + e] - ay
+        wz = walls[WALL_BZ * WALL_EDGES + e] - az
+        along = (wx * ux + wy * uy + wz * uz) * inv_dd
+        yx, yy, yz = wx - along * ux, wy - along * uy, wz - along * uz
+        yy2 = yx * yx + yy * yy + yz * yz
+        cb2 = (dd - rs * rs) * inv_dd
+        f = rs * sqrt(cb2 / yy2)
+        tx = ox if at_centre else ax + cb2 * ux - f * yx
+        ty = oy if at_centre else ay + cb2 * uy - f * yy
+        tz = oz if at_centre else az + cb2 * uz - f * yz
+        vx, vy, vz = tx - ax, ty - ay, tz - az
+        vv = vx * vx + vy * vy + vz * vz
+        walls[WALL_VX * WALL_EDGES + e] = vx
+        walls[WALL_VY * WALL_EDGES + e] = vy
+        walls[WALL_VZ * WALL_EDGES + e] = vz
+        walls[WALL_VV * WALL_EDGES + e] = vv
+        walls[WALL_INV_VV * WALL_EDGES + e] = 1.0 / vv if vv != 0.0 else 0.0
+        degenerate = ~at_centre & (yy2 < 1e-30)
+        walls[WALL_EXACT * WALL_EDGES + e] = 1.0 if degenerate | (vv == 0.0) else 0.0
+
+
+@njit_without_refcounts
+def _scalp_spans(walls,
+                 spans,
+                 n,
+                 scalp,
+                 delta):
+    """
+    Phase of ushape: each edge's span (lo, hi) of t inside each scalp sphere (spans rows).
+
+    project_to_scalp's arithmetic; an A deeper than delta inside a sphere is marked for the
+    exact path (there it is its own projection).
+    """
+    for k in range(scalp.shape[0]):
+        cx, cy, cz, r = scalp[k, 0], scalp[k, 1], scalp[k, 2], scalp[k, 3]
+        deep = r - delta
+        lo_row = 2 * k * WALL_EDGES
+        hi_row = lo_row + WALL_EDGES
+        for e in range(n):
+            wx = walls[WALL_AX * WALL_EDGES + e] - cx
+            wy = walls[WALL_AY * WALL_EDGES + e] - cy
+            wz = walls[WALL_AZ * WALL_EDGES + e] - cz
+            vx = walls[WALL_VX * WALL_EDGES + e]
+            vy = walls[WALL_VY * WALL_EDGES + e]
+            vz = walls[WALL_VZ * WALL_EDGES + e]
+            vv = walls[WALL_VV * WALL_EDGES + e]
+            inv_vv = walls[WALL_INV_VV * WALL_EDGES + e]
+            ww = wx * wx + wy * wy + wz * wz
+            b = wx * vx + wy * vy + wz * vz
+            disc = b * b - vv * (ww - r * r)
+            sq = sqrt(disc)
+            inside = disc > 0.0
+            spans[lo_row + e] = (-b - sq) * inv_vv if inside else 1.0
+            spans[hi_row + e] = (-b + sq) * inv_vv if inside else 0.0
+            if ww < deep * deep:
+                walls[WALL_EXACT * WALL_EDGES + e] = 1.0
+
+
+@njit_without_refcounts
+def _bisection_widths(walls,
+                      n,
+                      delta):
+    """
+    Phase of ushape: the width 2^-m of the bisection's last bracket and 2^m (exact).
+
+    m is the first with (2^-m)^2 |V|^2 <= delta^2: halvings over every edge until none
+    needs another (the loop of project_to_scalp, edge by edge the same numbers).
+    """
+    d2 = delta * delta
+    for e in range(n):
+        walls[WALL_WIDTH * WALL_EDGES + e] = 1.0
+        walls[WALL_SCALE * WALL_EDGES + e] = 1.0
+    more = 1
+    while more > 0:
+        more = 0
+        for e in range(n):
+            width = walls[WALL_WIDTH * WALL_EDGES + e]
+            halve = width * width * walls[WALL_VV * WALL_EDGES + e] > d2
+            walls[WALL_WIDTH * WALL_EDGES + e] = width * 0.5 if halve else width
+            scale = walls[WALL_SCALE * WALL_EDGES + e]
+            walls[WALL_SCALE * WALL_EDGES + e] = scale * 2.0 if halve else scale
+            more += 1 if halve else 0
+
+
+@njit_without_refcounts
+def _projections(walls,
+                 spans,
+                 n,
+                 n_scalp):
+    """
+    Phase of ushape: P of every edge that enters the scalp once and stays in up to A'.
+
+    Entry and cover as project_to_scalp takes them, sphere by sphere (cover: as many
+    passes over the spheres as can grow it, n_scalp + 1); P = A + t V with t the middle
+    of the dyadic bracket holding the entry. Other edges are marked for the exact path.
+    """
+    for e in range(n):
+        walls[WALL_ENTRY * WALL_EDGES + e] = 1.0
+    for k in range(n_scalp):
+        lo_row = 2 * k * WALL_EDGES
+        hi_row = lo_row + WALL_EDGES
+        for e in range(n):
+            lo = spans[lo_row + e]
+            entry = walls[WALL_ENTRY * WALL_EDGES + e]
+            walls[WALL_ENTRY * WALL_EDGES + e] = max(lo, 0.0) if (spans[hi_row + e] > 0.0) & \
+                (lo < entry) else entry
+    for e in range(n):
+        walls[WALL_COVER * WALL_EDGES + e] = walls[WALL_ENTRY * WALL_EDGES + e]
+    for _ in range(n_scalp + 1):
+        for k in range(n_scalp):
+            lo_row = 2 * k * WALL_EDGES
+            hi_row = lo_row + WALL_EDGES
+            for e in range(n):
+                cover = walls[WALL_COVER * WALL_EDGES + e]
+                hi = spans[hi_row + e]
+                walls[WALL_COVER * WALL_EDGES + e] = hi if (spans[lo_row + e] <= cover) & \
+                    (cover < hi) else cover
+    for e in range(n):
+        entry = walls[WALL_ENTRY * WALL_EDGES + e]
+        once = (walls[WALL_COVER * WALL_EDGES + e] >= 1.0) & (0.0 < entry) & (entry < 1.0)
+        t = (np.floor(entry * walls[WALL_SCALE * WALL_EDGES + e]) + 0.5) * \
+            walls[WALL_WIDTH * WALL_EDGES + e]
+        walls[WALL_PX * WALL_EDGES + e] = walls[WALL_AX * WALL_EDGES + e] + \
+            t * walls[WALL_VX * WALL_EDGES + e]
+        walls[WALL_PY * WALL_EDGES + e] = walls[WALL_AY * WALL_EDGES + e] + \
+            t * walls[WALL_VY * WALL_EDGES + e]
+        walls[WALL_PZ * WALL_EDGES + e] = walls[WALL_AZ * WALL_EDGES + e] + \
+            t * walls[WALL_VZ * WALL_EDGES + e]
+        if not once:
+            walls[WALL_EXACT * WALL_EDGES + e] = 1.0
+
+
+@njit_without_refcounts
+def _fix_ups(walls,
+             n,
+             max_dist,
+             fix_len):
+    """Phase of ushape: a projection too far (1) or reversed (2) goes to A + fix_len N."""
+    for e in range(n):
+        ax = walls[WALL_AX * WALL_EDGES + e]
+        ay = walls[WALL_AY * WALL_EDGES + e]
+        az = walls[WALL_AZ * WALL_EDGES + e]
+        nx = walls[WALL_NX * WALL_EDGES + e]
+        ny = walls[WALL_NY * WALL_EDGES + e]
+        nz = walls[WALL_NZ * WALL_EDGES + e]
+        px = walls[WALL_PX * WALL_EDGES + e]
+        py = walls[WALL_PY * WALL_EDGES + e]
+        pz = walls[WALL_PZ * WALL_EDGES + e]
+        vx, vy, vz = px - ax, py - ay, pz - az
+        dist = sqrt(vx * vx + vy * vy + vz * vz)
+        far = dist > max_dist
+        reverse = vx * nx + vy * ny + vz * nz < 0.0
+        fixed = far | reverse
+        walls[WALL_PX * WALL_EDGES + e] = ax + fix_len * nx if fixed else px
+        walls[WALL_PY * WALL_EDGES + e] = ay + fix_len * ny if fixed else py
+        walls[WALL_PZ * WALL_EDGES + e] = az + fix_len * nz if fixed else pz
+        walls[WALL_FLAG * WALL_EDGES + e] = 1.0 if far else (2.0 if reverse else 0.0)
+
+
 @njit_without_refcounts
 def ushape(grid,
            sigma,
@@ -209,16 +413,18 @@ def ushape(grid,
            projection,
            out,
            flags,
-           spans):
+           scratch):
     """
     Write the U-shape vertices of each strip into out (k, verts_per_strip, 3).
 
     Layout per strip: the grid column by column, then the left wall (edge column, its
     projections), then the right wall. sigma[s] = +1 when the strip's AB x AC normal faces
     the scalp side (fixed at rest), -1 otherwise. flags[k, side, r] = 0 projected on the
-    scalp, 1 fixed because too far, 2 fixed because of reverse volume. spans (n_scalp, 2)
-    is project_to_scalp's scratch.
+    scalp, 1 fixed because too far, 2 fixed because of reverse volume. scratch is
+    wall_scratch(n_scalp): the walls are projected WALL_ROWS rows at a time by vectorised
+    phases (see WALL_ROWS), the rest by project_to_scalp.
     """
+    spans, walls, sphere_spans = scratch
     scalp, centre, rs, delta = (projection.scalp, projection.centre, projection.rs,
                                 projection.delta)
     max_dist, fix_len = projection.max_dist, projection.fix_len
@@ -232,37 +438,53 @@ def ushape(grid,
                 out[k, i, 1] = grid[k, c, r, 1]
                 out[k, i, 2] = grid[k, c, r, 2]
                 i += 1
-        for r in range(R):
-            # one normal per row, for both walls
-            r0, r1 = max(r - 1, 0), min(r + 1, R - 1)
-            nx, ny, nz = strip_normal(_point(grid, k, 0, r), _point(grid, k, C - 1, r),
-                                      _point(grid, k, 0, r0), _point(grid, k, C - 1, r0),
-                                      _point(grid, k, 0, r1), _point(grid, k, C - 1, r1))
-            nx, ny, nz = sg * nx, sg * ny, sg * nz              # towards the scalp side
-            for side in range(2):
-                ca = 0 if side == 0 else C - 1
-                cb = C - 1 if side == 0 else 0
-                ax, ay, az = grid[k, ca, r, 0], grid[k, ca, r, 1], grid[k, ca, r, 2]
-                bx, by, bz = grid[k, cb, r, 0], grid[k, cb, r, 1], grid[k, cb, r, 2]
-                tx, ty, tz = tangent_point(ax, ay, az, bx, by, bz, centre, rs)
-                px, py, pz = project_to_scalp((ax, ay, az), (tx, ty, tz), scalp, delta, spans)
-                vx, vy, vz = px - ax, py - ay, pz - az
-                dist = sqrt(vx * vx + vy * vy + vz * vz)
-                flag = 0
-                if dist > max_dist:
-                    flag = 1                                    # too far (fig. 3.4A)
-                elif vx * nx + vy * ny + vz * nz < 0.0:
-                    flag = 2                                    # reverse volume (fig. 3.7)
-                if flag != 0:
-                    px, py, pz = ax + fix_len * nx, ay + fix_len * ny, az + fix_len * nz
-                flags[k, side, r] = flag
-                base = C * R + side * 2 * R
-                out[k, base + r, 0] = ax
-                out[k, base + r, 1] = ay
-                out[k, base + r, 2] = az
-                out[k, base + R + r, 0] = px
-                out[k, base + R + r, 1] = py
-                out[k, base + R + r, 2] = pz
+        for r0 in range(0, R, WALL_ROWS):
+            rows = min(WALL_ROWS, R - r0)
+            n = 2 * rows
+            for rr in range(rows):
+                r = r0 + rr
+                # one normal per row, for both walls
+                r_prev, r_next = max(r - 1, 0), min(r + 1, R - 1)
+                nx, ny, nz = strip_normal(_point(grid, k, 0, r), _point(grid, k, C - 1, r),
+                                          _point(grid, k, 0, r_prev),
+                                          _point(grid, k, C - 1, r_prev),
+                                          _point(grid, k, 0, r_next),
+                                          _point(grid, k, C - 1, r_next))
+                for side in range(2):
+                    e = 2 * rr + side
+                    ca = 0 if side == 0 else C - 1
+                    cb = C - 1 if side == 0 else 0
+                    for a in range(3):
+                        walls[(WALL_AX + a) * WALL_EDGES + e] = grid[k, ca, r, a]
+                        walls[(WALL_BX + a) * WALL_EDGES + e] = grid[k, cb, r, a]
+                    walls[WALL_NX * WALL_EDGES + e] = sg * nx      # towards the scalp side
+                    walls[WALL_NY * WALL_EDGES + e] = sg * ny
+                    walls[WALL_NZ * WALL_EDGES + e] = sg * nz
+            _tangent_points(walls, n, centre, rs)
+            _scalp_spans(walls, sphere_spans, n, scalp, delta)
+            _bisection_widths(walls, n, delta)
+            _projections(walls, sphere_spans, n, scalp.shape[0])
+            for e in range(n):
+                if walls[WALL_EXACT * WALL_EDGES + e] != 0.0:
+                    a = (walls[WALL_AX * WALL_EDGES + e], walls[WALL_AY * WALL_EDGES + e],
+                         walls[WALL_AZ * WALL_EDGES + e])
+                    t = tangent_point(a[0], a[1], a[2], walls[WALL_BX * WALL_EDGES + e],
+                                      walls[WALL_BY * WALL_EDGES + e],
+                                      walls[WALL_BZ * WALL_EDGES + e], centre, rs)
+                    px, py, pz = project_to_scalp(a, t, scalp, delta, spans)
+                    walls[WALL_PX * WALL_EDGES + e] = px
+                    walls[WALL_PY * WALL_EDGES + e] = py
+                    walls[WALL_PZ * WALL_EDGES + e] = pz
+            _fix_ups(walls, n, max_dist, fix_len)
+            for rr in range(rows):
+                r = r0 + rr
+                for side in range(2):
+                    e = 2 * rr + side
+                    flags[k, side, r] = np.int64(walls[WALL_FLAG * WALL_EDGES + e])
+                    base = C * R + side * 2 * R
+                    for a in range(3):
+                        out[k, base + r, a] = walls[(WALL_AX + a) * WALL_EDGES + e]
+                        out[k, base + R + r, a] = walls[(WALL_PX + a) * WALL_EDGES + e]
 
 
 @njit_without_refcounts

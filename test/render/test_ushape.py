@@ -1,5 +1,7 @@
 """U-shape strips (thesis 3.1, 3.2): projections, fix-ups, winding, UVs and counts."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -98,7 +100,7 @@ def run_ushape(grid, sigma):
     projection = ushape.Projection(scalp=scalp, centre=np.array([0.0, 0.0, 0.0]), rs=0.05,
                                    delta=1e-4, max_dist=0.04, fix_len=0.006)
     ushape.ushape(grid, np.array([sigma]), np.array([0]), projection, out, flags,
-                  np.empty((len(projection.scalp), 2)))
+                  ushape.wall_scratch(len(projection.scalp)))
     return out, flags
 
 
@@ -204,3 +206,69 @@ def test_projection_is_the_bisection_between_points(n_spheres):
         d = np.linalg.norm(target - scalp[:, :3], axis=1) < scalp[:, 3]
         kinds.add('ends inside' if d.any() else 'ends outside')
     assert kinds == {'ends inside', 'ends outside'}
+
+
+def walls_edge_by_edge(grid, sigma, projection):
+    """Each wall vertex by tangent_point, project_to_scalp and the fix-ups, one at a time."""
+    K, C, R = grid.shape[:3]
+    spans = np.empty((len(projection.scalp), 2))
+    walls = np.zeros((K, 2, 2 * R, 3))
+    flags = np.zeros((K, 2, R), dtype=np.int64)
+    for k in range(K):
+        for r in range(R):
+            r0, r1 = max(r - 1, 0), min(r + 1, R - 1)
+            n = np.array(ushape.strip_normal(*(tuple(grid[k, c, rr]) for rr in (r, r0, r1)
+                                               for c in (0, C - 1)))) * sigma[k]
+            for side, (ca, cb) in enumerate(((0, C - 1), (C - 1, 0))):
+                a, b = grid[k, ca, r], grid[k, cb, r]
+                t = ushape.tangent_point(*a, *b, projection.centre, projection.rs)
+                p = np.array(ushape.project_to_scalp(tuple(a), t, projection.scalp,
+                                                     projection.delta, spans))
+                v = p - a
+                if math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) > projection.max_dist:
+                    flags[k, side, r] = 1
+                elif v[0] * n[0] + v[1] * n[1] + v[2] * n[2] < 0.0:
+                    flags[k, side, r] = 2
+                if flags[k, side, r]:
+                    p = a + projection.fix_len * n
+                walls[k, side, r], walls[k, side, R + r] = a, p
+    return walls, flags
+
+
+@pytest.mark.parametrize('rows', [5, 30, 300])
+@pytest.mark.parametrize('n_spheres', [1, 3])
+def test_vectorised_walls_are_the_edge_by_edge_walls_bit_for_bit(rows, n_spheres):
+    """
+    Check that the walls of ushape, projected in vectorised phases, are the scalar ones.
+
+    They must be, to the bit, what tangent_point, project_to_scalp and the fix-ups give
+    edge by edge: for strips crumpled around a scalp of several spheres, with edges deep
+    inside it, passing through a sphere and out again, too far, and reversed (the rare
+    ones take the scalar path inside ushape), and strips longer than WALL_ROWS rows.
+    """
+    rng = np.random.default_rng(rows + n_spheres)
+    scalp = np.column_stack([rng.normal(scale=0.02, size=(n_spheres, 3)),
+                             rng.uniform(0.06, 0.09, n_spheres)])
+    projection = ushape.Projection(scalp=scalp, centre=np.array([0.0, 0.0, 0.01]), rs=0.04,
+                                   delta=2e-4, max_dist=0.05, fix_len=0.006)
+    K, C = 6, 3
+    # random walks over the scalp, some starting inside it: every kind of edge
+    steps = rng.normal(scale=0.012, size=(K, rows, 3))
+    start = rng.normal(size=(K, 3))
+    start *= rng.uniform(0.0, 0.12, (K, 1)) / np.linalg.norm(start, axis=1, keepdims=True)
+    start[0] = scalp[0, :3]                  # one strip starts deep inside the scalp
+    left = start[:, None, :] + np.cumsum(steps, axis=1)
+    right = left + rng.normal(scale=0.004, size=(K, rows, 3))
+    grid = np.stack([left, 0.5 * (left + right), right], axis=1)
+    sigma = rng.choice([-1.0, 1.0], K)
+    out = np.zeros((K, (C + 4) * rows, 3))
+    flags = np.zeros((K, 2, rows), dtype=np.int64)
+    ushape.ushape(grid, sigma, np.arange(K), projection, out, flags,
+                  ushape.wall_scratch(n_spheres))
+    walls, want_flags = walls_edge_by_edge(grid, sigma, projection)
+    got = out[:, C * rows:].reshape(K, 2, 2 * rows, 3)
+    assert np.array_equal(got, walls) and np.array_equal(flags, want_flags)
+    assert set(np.unique(want_flags)) == {0, 1, 2}
+    deep = (np.linalg.norm(grid[:, [0, -1], :, None, :] - scalp[:, :3], axis=-1)
+            < scalp[:, 3] - projection.delta).any(axis=-1)
+    assert deep.any() and not deep.all()
