@@ -37,28 +37,46 @@ def tangent_point(ax, ay, az, bx, by, bz, o, rs):
     A, B, O, towards B), AA' makes the angle beta = asin(rs / d) with U, turned away from
     B, and is as long as the tangent sqrt(d^2 - rs^2). So A' = A + cos^2(beta) U
     - rs cos(beta) y: written with d^2 and the length of y's unnormalised vector, that is
-    two divisions and one square root (a kernel of every U-shape wall row).
+    two divisions and one square root (a kernel of every U-shape wall row). Selects, not
+    branches, so that ushape's loop over the edges calling it is vectorised.
     """
     ux, uy, uz = o[0] - ax, o[1] - ay, o[2] - az
     dd = ux * ux + uy * uy + uz * uz
-    if rs <= 0.0 or dd <= rs * rs:
-        return o[0], o[1], o[2]
+    at_centre = (rs <= 0.0) | (dd <= rs * rs)
     inv_dd = 1.0 / dd
     wx, wy, wz = bx - ax, by - ay, bz - az
     along = (wx * ux + wy * uy + wz * uz) * inv_dd
     # y, unnormalised: AB less its part along U
     yx, yy, yz = wx - along * ux, wy - along * uy, wz - along * uz
     yy2 = yx * yx + yy * yy + yz * yz
-    if yy2 < 1e-30:
-        # AB along AO: any side will do (as vecmath.perpendicular_unit picks it)
-        if abs(ux) < 0.9 * sqrt(dd):
-            yx, yy, yz = 0.0, -uz, uy
-        else:
-            yx, yy, yz = uz, 0.0, -ux
-        yy2 = yx * yx + yy * yy + yz * yz
+    # AB along AO: any side will do (as vecmath.perpendicular_unit picks it)
+    along_ao = yy2 < 1e-30
+    x_side = abs(ux) < 0.9 * sqrt(dd)
+    yx = (0.0 if x_side else uz) if along_ao else yx
+    yy = (-uz if x_side else 0.0) if along_ao else yy
+    yz = (uy if x_side else -ux) if along_ao else yz
+    yy2 = yx * yx + yy * yy + yz * yz if along_ao else yy2
     cb2 = (dd - rs * rs) * inv_dd                 # cos^2(beta)
     f = rs * sqrt(cb2 / yy2)                      # rs cos(beta) / |y|
-    return ax + cb2 * ux - f * yx, ay + cb2 * uy - f * yy, az + cb2 * uz - f * yz
+    return (o[0] if at_centre else ax + cb2 * ux - f * yx,
+            o[1] if at_centre else ay + cb2 * uy - f * yy,
+            o[2] if at_centre else az + cb2 * uz - f * yz)
+
+
+@njit_without_refcounts
+def _span_in_sphere(w, ww, v, r):
+    """
+    Return the open interval of t with |w + t v| < r, or (1, 0) if there is none.
+
+    w = A - the sphere's centre with ww = |w|^2; v = (v, |v|^2, 1 / |v|^2). The roots of
+    |w + t v|^2 = r^2, without a branch (vectorised in ushape's phases).
+    """
+    vx, vy, vz, vv, inv_vv = v
+    b = w[0] * vx + w[1] * vy + w[2] * vz
+    disc = b * b - vv * (ww - r * r)
+    sq = sqrt(disc)
+    inside = disc > 0.0
+    return ((-b - sq) * inv_vv if inside else 1.0), ((-b + sq) * inv_vv if inside else 0.0)
 
 
 @njit_without_refcounts
@@ -87,14 +105,8 @@ def project_to_scalp(a, target, scalp, delta, spans):
         deep = r - delta
         if ww < deep * deep:
             return ax, ay, az                   # deeper than delta inside: its own projection
-        # |w + t v|^2 < r^2, w = A - centre: the open interval between the roots
-        b = wx * vx + wy * vy + wz * vz
-        disc = b * b - vv * (ww - r * r)
-        if disc <= 0.0:
-            spans[k, 0], spans[k, 1] = 1.0, 0.0          # never inside
-        else:
-            sq = sqrt(disc)
-            spans[k, 0], spans[k, 1] = (-b - sq) * inv_vv, (-b + sq) * inv_vv
+        spans[k, 0], spans[k, 1] = _span_in_sphere((wx, wy, wz), ww, (vx, vy, vz, vv, inv_vv),
+                                                   r)
     if vv == 0.0:
         return ax, ay, az
     # the bisection halves [0, 1] n times, n the first with (2^-n)^2 |AA'|^2 <= delta^2
@@ -206,9 +218,9 @@ def strip_normal(left, right, left_prev, right_prev, left_next, right_next):
 # time, phase by phase, each phase a loop over the edges that LLVM vectorises (no call, no
 # early return, rows at constant offsets of a scratch): the tangent point A', the span of
 # A + t (A' - A) inside each scalp sphere, the bisection's width, entry and cover, and the
-# fix-ups. Edges off the usual path (deep inside the scalp, A' = A, AB along AO, or in and
-# out of the scalp again: 278 of 10 800 in a 180-strip demo frame) are marked and projected
-# by tangent_point and project_to_scalp themselves. Every number is computed by the same
+# fix-ups. Edges off the usual path (deep inside the scalp, A' = A, or in and out of the
+# scalp again: 278 of 10 800 in a 180-strip demo frame) are marked and projected by
+# project_to_scalp itself. Every number is computed by the same
 # operations in the same order as there, so the walls are the same to the bit.
 WALL_ROWS = 128
 WALL_EDGES = 2 * WALL_ROWS
@@ -222,7 +234,7 @@ WALL_FIELDS = 23
 
 
 def wall_scratch(n_scalp):
-    """Return the scratch ushape takes: (project_to_scalp's spans, the walls' rows, spans)."""
+    """Return ushape's scratch: project_to_scalp's spans, the walls' rows, their spans."""
     return (np.empty((n_scalp, 2)), np.zeros(WALL_FIELDS * WALL_EDGES),
             np.zeros(2 * n_scalp * WALL_EDGES))
 
@@ -233,30 +245,17 @@ def _tangent_points(walls,
                     centre,
                     rs):
     """
-    Phase of ushape: V = A' - A of every edge (tangent_point's arithmetic), |V|^2, 1/|V|^2.
+    Phase of ushape: V = A' - A of every edge (tangent_point), |V|^2 and 1 / |V|^2.
 
-    Marks AB along AO (tangent_point picks a side by a branch) for the exact path.
+    Marks A' = A (project_to_scalp returns A) for the exact path.
     """
-    ox, oy, oz = centre[0], centre[1], centre[2]
     for e in range(n):
         ax = walls[WALL_AX * WALL_EDGES + e]
         ay = walls[WALL_AY * WALL_EDGES + e]
         az = walls[WALL_AZ * WALL_EDGES + e]
-        ux, uy, uz = ox - ax, oy - ay, oz - az
-        dd = ux * ux + uy * uy + uz * uz
-        at_centre = (rs <= 0.0) | (dd <= rs * rs)
-        inv_dd = 1.0 / dd
-        wx = walls[WALL_BX * WALL_EDGES + e] - ax
-        wy = walls[WALL_BY * WALL_EDGES + e] - ay
-        wz = walls[WALL_BZ * WALL_EDGES + e] - az
-        along = (wx * ux + wy * uy + wz * uz) * inv_dd
-        yx, yy, yz = wx - along * ux, wy - along * uy, wz - along * uz
-        yy2 = yx * yx + yy * yy + yz * yz
-        cb2 = (dd - rs * rs) * inv_dd
-        f = rs * sqrt(cb2 / yy2)
-        tx = ox if at_centre else ax + cb2 * ux - f * yx
-        ty = oy if at_centre else ay + cb2 * uy - f * yy
-        tz = oz if at_centre else az + cb2 * uz - f * yz
+        tx, ty, tz = tangent_point(ax, ay, az, walls[WALL_BX * WALL_EDGES + e],
+                                   walls[WALL_BY * WALL_EDGES + e],
+                                   walls[WALL_BZ * WALL_EDGES + e], centre, rs)
         vx, vy, vz = tx - ax, ty - ay, tz - az
         vv = vx * vx + vy * vy + vz * vz
         walls[WALL_VX * WALL_EDGES + e] = vx
@@ -264,8 +263,7 @@ def _tangent_points(walls,
         walls[WALL_VZ * WALL_EDGES + e] = vz
         walls[WALL_VV * WALL_EDGES + e] = vv
         walls[WALL_INV_VV * WALL_EDGES + e] = 1.0 / vv if vv != 0.0 else 0.0
-        degenerate = ~at_centre & (yy2 < 1e-30)
-        walls[WALL_EXACT * WALL_EDGES + e] = 1.0 if degenerate | (vv == 0.0) else 0.0
+        walls[WALL_EXACT * WALL_EDGES + e] = 1.0 if vv == 0.0 else 0.0
 
 
 @njit_without_refcounts
@@ -295,12 +293,8 @@ def _scalp_spans(walls,
             vv = walls[WALL_VV * WALL_EDGES + e]
             inv_vv = walls[WALL_INV_VV * WALL_EDGES + e]
             ww = wx * wx + wy * wy + wz * wz
-            b = wx * vx + wy * vy + wz * vz
-            disc = b * b - vv * (ww - r * r)
-            sq = sqrt(disc)
-            inside = disc > 0.0
-            spans[lo_row + e] = (-b - sq) * inv_vv if inside else 1.0
-            spans[hi_row + e] = (-b + sq) * inv_vv if inside else 0.0
+            spans[lo_row + e], spans[hi_row + e] = _span_in_sphere(
+                (wx, wy, wz), ww, (vx, vy, vz, vv, inv_vv), r)
             if ww < deep * deep:
                 walls[WALL_EXACT * WALL_EDGES + e] = 1.0
 
