@@ -26,6 +26,7 @@ not the mechanics of a chain (see solvers/articulated.py).
 from collections import namedtuple
 from math import acos, atan2, cos, pi, sin, sqrt
 
+from numba import njit
 import numpy as np
 
 from hair_sim.kernels import njit_without_refcounts
@@ -327,6 +328,44 @@ def _wrap_once(a):
     return a + 2.0 * pi if a <= -pi else a
 
 
+# inlined by numba itself: LLVM left the call in place, and _turn_packed_segments' loop,
+# which calls it, was then not vectorised
+@njit(cache=True, _nrt=False, error_model='numpy', inline='always')
+def _write_turn(turned,
+                j,
+                angles,
+                turn,
+                trig,
+                C):
+    """
+    Clamp a segment's turn and write it to slot j of `turned`; return whether it clamped.
+
+    angles (theta, phi) before the step, turn (d_theta, d_phi) of eq. 6, trig their sines
+    and cosines before it, C the chart. A turn past MAX_TURN is clamped (guard: counted,
+    not hidden); the new sines and cosines come from sums of angles (no sin or cos call:
+    |d| <= MAX_TURN), then the new direction.
+    """
+    th, ph = angles
+    d_th, d_ph = turn
+    big = (abs(d_th) > MAX_TURN) | (abs(d_ph) > MAX_TURN)
+    d_th = min(MAX_TURN, max(-MAX_TURN, d_th)) if big else d_th
+    d_ph = min(MAX_TURN, max(-MAX_TURN, d_ph)) if big else d_ph
+    nst, nct, nsp, ncp = _turn_trig(trig, d_th, d_ph)
+    dx, dy, dz = _direction_of_trig(C, nst, nct, nsp, ncp)
+    turned[TURN_TH * BLOCK + j] = th
+    turned[TURN_NEW_TH * BLOCK + j] = th + d_th
+    turned[TURN_NEW_PH * BLOCK + j] = ph + d_ph
+    turned[TURN_D_PH * BLOCK + j] = d_ph
+    turned[TURN_SIN_TH * BLOCK + j] = nst
+    turned[TURN_COS_TH * BLOCK + j] = nct
+    turned[TURN_SIN_PH * BLOCK + j] = nsp
+    turned[TURN_COS_PH * BLOCK + j] = ncp
+    turned[TURN_DX * BLOCK + j] = dx
+    turned[TURN_DY * BLOCK + j] = dy
+    turned[TURN_DZ * BLOCK + j] = dz
+    return big
+
+
 @njit_without_refcounts
 def _turn_packed_segments(packed,
                           contiguous,
@@ -392,23 +431,8 @@ def _turn_packed_segments(packed,
         unwrapped = (abs(to_rest) >= WRAP_ONCE) | (abs(turn_before) >= WRAP_ONCE)
         redo = near_pole | unwrapped
         exact += 1 if redo else 0
-        big = (abs(d_th) > MAX_TURN) | (abs(d_ph) > MAX_TURN)   # guard: counted, not hidden
+        big = _write_turn(turned, j, (th, ph), (d_th, d_ph), (st, ct, sp, cp), C)
         clamps += 1 if big & ~redo else 0
-        d_th = min(MAX_TURN, max(-MAX_TURN, d_th)) if big else d_th
-        d_ph = min(MAX_TURN, max(-MAX_TURN, d_ph)) if big else d_ph
-        nst, nct, nsp, ncp = _turn_trig((st, ct, sp, cp), d_th, d_ph)   # |d| <= MAX_TURN
-        dx, dy, dz = _direction_of_trig(C, nst, nct, nsp, ncp)
-        turned[TURN_TH * BLOCK + j] = th
-        turned[TURN_NEW_TH * BLOCK + j] = th + d_th
-        turned[TURN_NEW_PH * BLOCK + j] = ph + d_ph
-        turned[TURN_D_PH * BLOCK + j] = d_ph
-        turned[TURN_SIN_TH * BLOCK + j] = nst
-        turned[TURN_COS_TH * BLOCK + j] = nct
-        turned[TURN_SIN_PH * BLOCK + j] = nsp
-        turned[TURN_COS_PH * BLOCK + j] = ncp
-        turned[TURN_DX * BLOCK + j] = dx
-        turned[TURN_DY * BLOCK + j] = dy
-        turned[TURN_DZ * BLOCK + j] = dz
         turned[TURN_EXACT * BLOCK + j] = 1.0 if redo else 0.0
     return clamps, exact
 
@@ -432,8 +456,7 @@ def _turn_segment_exactly(state,
     (packed[PACK_SIN_TH]). Returns (re-charted, clamped) as 0 or 1.
     """
     theta, phi, theta_prev, phi_prev = state.theta, state.phi, state.theta_prev, state.phi_prev
-    chart, rest_dir, trig = state.chart, state.rest_dir, state.trig
-    packed, turned = state.packed, state.turned
+    chart, rest_dir, trig, packed = state.chart, state.rest_dir, state.trig, state.packed
     f_dist, f_end = forces.f_dist, forces.f_end
     rx, ry, rz = rotate(R, rest_dir[s, i, 0], rest_dir[s, i, 1], rest_dir[s, i, 2])
     C, th, ph, thp, php, th0, ph0, recharted = _recentre(
@@ -458,26 +481,9 @@ def _turn_segment_exactly(state,
     x_php = x_ph - _wrap(ph - php)
     d_th = _next_deviation(x_th, x_thp, m_th, k, ii, damping, h, integrator) - x_th
     d_ph = _next_deviation(x_ph, x_php, m_ph, k, ii, damping, h, integrator) - x_ph
-    clamped = 0
-    if abs(d_th) > MAX_TURN or abs(d_ph) > MAX_TURN:   # guard: counted, not hidden
-        d_th = min(MAX_TURN, max(-MAX_TURN, d_th))
-        d_ph = min(MAX_TURN, max(-MAX_TURN, d_ph))
-        clamped = 1
-    tr = _turn_trig(tr, d_th, d_ph)     # no sin or cos call: |d| <= MAX_TURN
-    dx, dy, dz = _direction_of_trig(C, tr[SIN_TH], tr[COS_TH], tr[SIN_PH], tr[COS_PH])
     packed[PACK_SIN_TH * BLOCK + j] = st
-    turned[TURN_TH * BLOCK + j] = th
-    turned[TURN_NEW_TH * BLOCK + j] = th + d_th
-    turned[TURN_NEW_PH * BLOCK + j] = ph + d_ph
-    turned[TURN_D_PH * BLOCK + j] = d_ph
-    turned[TURN_SIN_TH * BLOCK + j] = tr[SIN_TH]
-    turned[TURN_COS_TH * BLOCK + j] = tr[COS_TH]
-    turned[TURN_SIN_PH * BLOCK + j] = tr[SIN_PH]
-    turned[TURN_COS_PH * BLOCK + j] = tr[COS_PH]
-    turned[TURN_DX * BLOCK + j] = dx
-    turned[TURN_DY * BLOCK + j] = dy
-    turned[TURN_DZ * BLOCK + j] = dz
-    return (1 if recharted else 0), clamped
+    clamped = _write_turn(state.turned, j, (th, ph), (d_th, d_ph), tr, C)
+    return (1 if recharted else 0), (1 if clamped else 0)
 
 
 @njit_without_refcounts
