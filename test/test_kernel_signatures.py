@@ -56,7 +56,8 @@ print(json.dumps(rows))
 
 # Kernels that allocate (their scratch or their result) once a call, so numba counts
 # references in them; none of them runs per strand or per vertex.
-ALLOCATING = {'visible_strips', 'shadow_cones', 'holds_projection_sphere',
+ALLOCATING = {'visible_strips', 'tessellate_visible_strips', 'shadow_cones',
+              'holds_projection_sphere',
               'culled_triangles', 'filter_head_motion', 'rotation_vector'}
 
 

@@ -12,17 +12,24 @@ ball, are in the shadow of one sphere. No trigonometry: each sphere's cone is ke
 axis and the sine and cosine of its half-angle.
 
 A strip with a simulated vertex in plain view is visible at once (most visible strips
-stop there, after a few dot products). The others are proven hidden piece by piece, the
-walls' projections worked out only where needed. Every wall runs from an edge point
-towards the projection sphere S (or is a short fix-up), and a sphere with the convex part
-of its shadow is convex too, so a sphere that holds S holds the walls of any vertices its
-shadow holds grown by the fix-up length: the whole strip at once, or two rows at a time,
-without projecting. Rows that no such sphere holds get their wall bottoms (the
-projections of the simulated vertices) and are held by one shadow with them, or else
-their three patches (the face between the two edges, and each edge with its wall) are,
-each split at most MAX_SPLITS times. Anything left over is drawn. The spheres are tried
-from the one that held the last piece. The test suite checks against a ray caster that no
-culled strip is hit by any ray.
+stop there, after a few dot products). For the others, the spheres whose shadow can
+reach the ball around the strip's vertices are its candidates, and a table holds how deep
+each vertex lies in each candidate's shadow (shadow_depths: a ball around a point is in a
+shadow when its radius is at most that depth; one vectorised loop, no branch). The strip
+is then proven hidden piece by piece, the walls worked out only where needed, cheapest
+bound first. Every wall runs from an edge point towards the projection sphere S (or is a
+short fix-up), and a sphere with the convex part of its shadow is convex too, so a sphere
+that holds S holds the walls of any vertices its shadow holds grown by the fix-up length:
+the whole strip at once, or two rows at a time. Below the head (the neck's and body's
+spheres do not hold S), a wall lies within max_dist of its edge point, or within the
+fix-up length where no scalp sphere is near (wall_extents), or in the hull of the fix-up
+ball and the segment to where it can reach (ushape.strip_wall_reach); only rows held by
+none of these get their wall bottoms worked out (the projection of thesis 3.2). Rows are
+held piece by piece (the face between the two edges, and each edge with its wall), each
+piece by one shadow, or else split at most MAX_SPLITS times. Anything left over is drawn.
+The spheres are tried from the one that held the last piece. The test suite checks
+against a ray caster that no culled strip is hit by any ray, on every shipped style, and
+that the wall bounds hold the walls the projection gives.
 """
 
 from math import sqrt
@@ -31,7 +38,7 @@ from numba import njit
 import numpy as np
 
 from hair_sim.kernels import njit_without_refcounts
-from hair_sim.render.ushape import strip_wall_bottoms
+from hair_sim.render.ushape import strip_wall_bottoms, strip_wall_reach
 
 MARGIN = 1e-4             # m: every corner ball grows by this much
 MAX_SPLITS = 3            # a patch no one shadow holds is split in four, this deep at most
@@ -64,7 +71,15 @@ def shadow_cones(eye, occ):
 
 @njit_without_refcounts
 def ball_in_shadow(x, y, z, rho, eye, cones, k):
-    """Return True if the ball (x, y, z; rho) lies in the shadow of sphere k (convex part)."""
+    """
+    Return True if the ball (x, y, z; rho) lies in the shadow of sphere k (convex part).
+
+    The ball is inside when its centre is at least rho from both of the part's boundaries:
+    the plane of the tangent circle (along - depth >= rho) and the cone. A point at angle
+    gamma < alpha from the axis, at distance db from the eye, is db sin(alpha - gamma)
+    from the cone, that is sin(alpha) along - cos(alpha) perp, with along and perp its
+    coordinates along and off the axis: one square root, no division.
+    """
     sa = cones[k, 3]
     if sa < 0.0:
         return False
@@ -72,12 +87,56 @@ def ball_in_shadow(x, y, z, rho, eye, cones, k):
     along = dx * cones[k, 0] + dy * cones[k, 1] + dz * cones[k, 2]
     if along - rho < cones[k, 5]:                  # not wholly beyond the tangent circle
         return False
-    db = sqrt(dx * dx + dy * dy + dz * dz)
-    sb = rho / db                                  # sine of the ball's angular radius
-    if sb > sa:
-        return False
-    # the ball's direction within alpha - beta of the axis: cos(gamma) >= cos(alpha - beta)
-    return along >= db * (cones[k, 4] * sqrt(1.0 - sb * sb) + sa * sb)
+    px = dx - along * cones[k, 0]
+    py = dy - along * cones[k, 1]
+    pz = dz - along * cones[k, 2]
+    return sa * along - cones[k, 4] * sqrt(px * px + py * py + pz * pz) >= rho
+
+
+@njit_without_refcounts
+def shadow_depth(x, y, z, eye, cones, k):
+    """
+    Return how deep the point (x, y, z) lies in the shadow of sphere k (negative: outside).
+
+    A ball of radius rho around it lies in the shadow when this is >= rho (ball_in_shadow
+    decides the same, with early exits). It is the smaller of two functions that change
+    by at most the distance moved (the depth beyond the tangent circle's plane, and
+    sin(alpha) along - cos(alpha) perp), so a point within r of (x, y, z) is at most r
+    less deep. -inf for a sphere that hides nothing.
+    """
+    if cones[k, 3] < 0.0:
+        return -np.inf
+    dx, dy, dz = x - eye[0], y - eye[1], z - eye[2]
+    along = dx * cones[k, 0] + dy * cones[k, 1] + dz * cones[k, 2]
+    px = dx - along * cones[k, 0]
+    py = dy - along * cones[k, 1]
+    pz = dz - along * cones[k, 2]
+    return min(along - cones[k, 5],
+               cones[k, 3] * along - cones[k, 4] * sqrt(px * px + py * py + pz * pz))
+
+
+@njit_without_refcounts
+def shadow_depths(points, n, eye, cones, out):
+    """
+    Write out[k, i]: how deep point i lies in the shadow of sphere k (negative: outside).
+
+    points is (3, >= n), x, y and z of a point in a column; a ball of radius rho around
+    point i lies in shadow k when out[k, i] >= rho (the measure of ball_in_shadow: the
+    distance to the nearer of the part's plane and cone, for a point inside). Written
+    without a branch so that the loop over the points is vectorised; a sphere that hides
+    nothing gets -inf.
+    """
+    for k in range(cones.shape[0]):
+        ux, uy, uz = cones[k, 0], cones[k, 1], cones[k, 2]
+        sa, ca, plane = cones[k, 3], cones[k, 4], cones[k, 5]
+        hides = sa >= 0.0
+        for i in range(n):
+            dx, dy, dz = points[0, i] - eye[0], points[1, i] - eye[1], points[2, i] - eye[2]
+            along = dx * ux + dy * uy + dz * uz
+            px, py, pz = dx - along * ux, dy - along * uy, dz - along * uz
+            cone = sa * along - ca * sqrt(px * px + py * py + pz * pz)
+            d = min(cone, along - plane)
+            out[k, i] = d if hides else -np.inf
 
 
 @njit_without_refcounts
@@ -157,28 +216,61 @@ def _set_quad(work, P, s0, Q, s1, j):
 
 
 @njit_without_refcounts
-def _rows_held(pos, strands, bottoms, j0, j1, grow, eye, cones, first):
-    """Return the sphere whose shadow holds rows j0..j1 (edges, wall bottoms), or -1."""
-    a, b = strands
-    n = cones.shape[0]
+def _face_held(depth, rows, grow, first):
+    """Return a sphere whose shadow holds the face between the edges of rows j, j + 1."""
+    j, _ = rows
+    n = depth.shape[0]
+    V = grow.shape[1]
     for i in range(n):
         k = _nth_sphere(first, i, n)
-        held = True
-        for q in range(2):
-            st = a if q == 0 else b
-            for j in range(j0, j1 + 1):
-                g = grow[q, j]
-                if not (ball_in_shadow(pos[st, j, 0], pos[st, j, 1], pos[st, j, 2], g, eye,
-                                       cones, k)
-                        and ball_in_shadow(bottoms[st, j, 0], bottoms[st, j, 1],
-                                           bottoms[st, j, 2], g, eye, cones, k)):
-                    held = False
-                    break
-            if not held:
-                break
-        if held:
+        if depth[k, j] >= grow[0, j] and depth[k, j + 1] >= grow[0, j + 1] and \
+                depth[k, V + j] >= grow[1, j] and depth[k, V + j + 1] >= grow[1, j + 1]:
             return k
     return -1
+
+
+@njit_without_refcounts
+def _wall_held(depth, edge, rows, grow, shadows, first):
+    """
+    Return a sphere whose shadow holds strand q's wall below rows j, j + 1, or -1.
+
+    edge is (q, its strand, ends): the wall bottoms, or how far the walls reach; rows is
+    (j, extra): the edge points' balls grow by grow + extra (their depths in the shadows
+    are the table depth, point q V + j), the ends' by grow.
+    """
+    q, st, ends = edge
+    j, extra = rows
+    eye, cones = shadows
+    n = depth.shape[0]
+    V = grow.shape[1]
+    for i in range(n):
+        k = _nth_sphere(first, i, n)
+        if depth[k, q * V + j] >= grow[q, j] + extra and \
+                depth[k, q * V + j + 1] >= grow[q, j + 1] + extra and \
+                ball_in_shadow(ends[st, j, 0], ends[st, j, 1], ends[st, j, 2], grow[q, j],
+                               eye, cones, k) and \
+                ball_in_shadow(ends[st, j + 1, 0], ends[st, j + 1, 1], ends[st, j + 1, 2],
+                               grow[q, j + 1], eye, cones, k):
+            return k
+    return -1
+
+
+@njit_without_refcounts
+def _pieces_held(depth, strip, rows, grow, shadows, first):
+    """
+    Return a sphere that held the last of the three pieces of rows j, j + 1, or -1.
+
+    The pieces are the face between the edges and each edge with its wall (its corners
+    grown as _wall_held says), each held by one sphere, not necessarily the same.
+    strip is (strands a, b, ends); rows (j, extra); shadows (eye, cones).
+    """
+    a, b, ends = strip
+    k = _face_held(depth, rows, grow, first)
+    for q in range(2):
+        if k < 0:
+            return -1
+        k = _wall_held(depth, (q, a if q == 0 else b, ends), rows, grow, shadows, k)
+    return k
 
 
 @njit(cache=True)
@@ -194,34 +286,32 @@ def holds_projection_sphere(projection, eye, cones, occ):
 
 
 @njit_without_refcounts
-def _held_with_any_walls(pos, strands, rows, grow, projection, shadows, first):
+def _held_with_any_walls(depth, rows, grow, walls, holds_s, first):
     """
     Return a sphere whose shadow holds rows j0..j1 and every wall they could have, or -1.
 
-    No wall bottom is worked out: a wall runs from an edge point A to its projection,
-    which lies on the segment from A to A', a point of the projection sphere S (the
-    bisection of thesis 3.2), or is A moved by the fix-up length C. Sphere k with the
-    convex part of its shadow is itself convex (the cone touches the sphere along the
-    circle that bounds the part): when S lies in sphere k (or in its shadow) and every
-    simulated vertex of the rows, grown by its deviation and C, lies in the shadow, so do
-    those rows with their walls, whatever the projections turn out to be.
-    shadows is (eye, cones, which spheres hold S: holds_projection_sphere).
+    No wall bottom is worked out. Each vertex's ball grows by its deviation and
+    walls[q, j], a radius that holds its wall whatever the projection turns out to be:
+    - the fix-up length C, with holds_s saying which spheres hold the projection sphere S
+      (holds_projection_sphere), only those being tried. A wall runs from an edge point A
+      to its projection, on the segment from A to A', a point of S (the bisection of
+      thesis 3.2), or is A moved by C. Sphere k with the convex part of its shadow is
+      itself convex (the cone touches the sphere along the circle that bounds the part):
+      when S lies in it and the balls lie in the shadow, so do the walls.
+    - wall_extents, with holds_s None: every sphere is tried.
+    depth is the table of shadow_depths (point q V + j of strand q).
     """
-    a, b = strands
     j0, j1 = rows
-    eye, cones, holds_s = shadows
-    fix = projection.fix_len
-    n = cones.shape[0]
+    n = depth.shape[0]
+    V = grow.shape[1]
     for i in range(n):
         k = _nth_sphere(first, i, n)
-        if not holds_s[k]:
+        if holds_s is not None and not holds_s[k]:
             continue
         held = True
         for q in range(2):
-            st = a if q == 0 else b
             for j in range(j0, j1 + 1):
-                if not ball_in_shadow(pos[st, j, 0], pos[st, j, 1], pos[st, j, 2],
-                                      grow[q, j] + fix, eye, cones, k):
+                if depth[k, q * V + j] < grow[q, j] + walls[q, j]:
                     held = False
                     break
             if not held:
@@ -232,35 +322,112 @@ def _held_with_any_walls(pos, strands, rows, grow, projection, shadows, first):
 
 
 @njit_without_refcounts
+def wall_extents(pos, strands, grow, projection, out):
+    """
+    Write out[q, j]: a radius around strand q's vertex j that holds its U-shape wall.
+
+    A wall's bottom is on the segment from its edge point A towards A' within max_dist
+    of A, or it is the fix-up, fix_len from A (strip_wall_bottoms): max(max_dist, fix_len)
+    holds it. Where no scalp sphere comes within max_dist + delta of the drawn edge
+    points near the vertex (within grow), the bisection's point (within delta of where AA'
+    enters the scalp) is farther than max_dist, so the wall is the fix-up: fix_len holds it
+    (the rows below the head, shadowed by the neck and body, whose spheres do not hold
+    the projection sphere). No square root.
+    """
+    scalp = projection.scalp
+    fix = projection.fix_len
+    longest = max(projection.max_dist, fix)
+    for q in range(2):
+        st = strands[q]
+        for j in range(pos.shape[1]):
+            near = False
+            for k in range(scalp.shape[0]):
+                dx = pos[st, j, 0] - scalp[k, 0]
+                dy = pos[st, j, 1] - scalp[k, 1]
+                dz = pos[st, j, 2] - scalp[k, 2]
+                r = scalp[k, 3] + projection.max_dist + projection.delta + grow[q, j]
+                near |= dx * dx + dy * dy + dz * dz <= r * r
+            out[q, j] = longest if near else fix
+
+
+@njit_without_refcounts
+def _deviations(pos, strands, grow):
+    """
+    Write grow (2, V): MARGIN and the largest deviation of the drawn edges around each
+    simulated vertex of strands (a, b); return the largest.
+
+    The drawn edge is an Oslo refinement of the simulated edge polygon and lies within
+    |P[j-1] - 2 P[j] + P[j+1]| / 6 of it (refined control polygons of a cubic B-spline
+    stay between the control polygon and the curve).
+    """
+    V = pos.shape[1]
+    largest = MARGIN
+    for q in range(2):
+        st = strands[q]
+        for j in range(V):
+            grow[q, j] = MARGIN
+        for j in range(1, V - 1):
+            dx = pos[st, j - 1, 0] - 2 * pos[st, j, 0] + pos[st, j + 1, 0]
+            dy = pos[st, j - 1, 1] - 2 * pos[st, j, 1] + pos[st, j + 1, 1]
+            dz = pos[st, j - 1, 2] - 2 * pos[st, j, 2] + pos[st, j + 1, 2]
+            g = sqrt(dx * dx + dy * dy + dz * dz) / 6.0 + MARGIN
+            largest = max(largest, g)
+            for r in range(j - 1, j + 2):
+                grow[q, r] = max(grow[q, r], g)
+    return largest
+
+
+@njit_without_refcounts
 def _strip_hidden(pos, strip, walls, grow, shadows, first, work):
     """
     Return a sphere that held the last piece of a hidden strip, or -1 if it may be seen.
 
-    strip is (s, strip_strands, sigma_s); walls (projection, bottoms, which rows have
-    their bottoms worked out, the projection's scratch). Each pair of rows is held by one
-    sphere's shadow without projecting its walls (_held_with_any_walls), or else its wall
-    bottoms are worked out and one shadow holds the rows and bottoms, or else each of
-    its three patches (the face between the edges, each edge with its wall), split as
-    quad_in_shadow does. Corner balls grow by grow (2, V).
+    strip is (s, strip_strands, sigma_s); walls (projection, bottoms, reach, which rows
+    have them worked out (2, V), the projection's scratch); grow (the deviations (2, V),
+    scratch for wall_extents); shadows (eye, the candidates' cones, which of them hold
+    S, the table of the simulated vertices' depths in their shadows). Each pair of rows,
+    cheapest first, is held:
+    - by one shadow without working out its walls (_held_with_any_walls), or
+    - grown by its wall_extents, or
+    - piece by piece with how far its walls can reach (strip_wall_reach), or
+    - piece by piece with its wall bottoms worked out (strip_wall_bottoms), or
+    - piece by piece, each split as quad_in_shadow does.
     """
     s, strip_strands, sigma_s = strip
-    projection, bottoms, projected, spans = walls
-    eye, cones, _ = shadows
+    projection, bottoms, reach, worked, spans = walls
+    eye, cones, holds_s, depth = shadows
+    grow, fix_ups, extents = grow
+    extents[0, 0] = -1.0                         # not worked out yet
     a, b = strip_strands[s, 0], strip_strands[s, 1]
     strands = (a, b)
     V = pos.shape[1]
     k = first
     for j in range(V - 1):
-        held = _held_with_any_walls(pos, strands, (j, j + 1), grow, projection, shadows, k)
+        held = _held_with_any_walls(depth, (j, j + 1), grow, fix_ups, holds_s, k)
+        if held >= 0:
+            k = held
+            continue
+        if extents[0, 0] < 0.0:
+            wall_extents(pos, strands, grow, projection, extents)
+        held = _held_with_any_walls(depth, (j, j + 1), grow, extents, None, k)
         if held >= 0:
             k = held
             continue
         for r in range(j, j + 2):
-            if not projected[r]:
+            if not worked[0, r]:
+                strip_wall_reach(pos, strip_strands, s, projection, (r, r), reach)
+                worked[0, r] = True
+        held = _pieces_held(depth, (a, b, reach), (j, projection.fix_len), grow, (eye, cones),
+                            k)
+        if held >= 0:
+            k = held
+            continue
+        for r in range(j, j + 2):
+            if not worked[1, r]:
                 strip_wall_bottoms(pos, strip_strands, s, sigma_s, projection, (r, r),
                                    bottoms, spans)
-                projected[r] = True
-        held = _rows_held(pos, strands, bottoms, j, j + 1, grow, eye, cones, k)
+                worked[1, r] = True
+        held = _pieces_held(depth, (a, b, bottoms), (j, 0.0), grow, (eye, cones), k)
         if held >= 0:
             k = held
             continue
@@ -285,7 +452,7 @@ def visible_strips(pos,
                    projection,
                    eye,
                    occ,
-                   bottoms,
+                   scratch,
                    out):
     """
     Write the strips that may be seen from eye into out[:count], in order; return count.
@@ -294,19 +461,49 @@ def visible_strips(pos,
     within |second difference| / 6 of it (refined control polygons of a cubic B-spline
     stay between the control polygon and the curve); its wall runs down to bottoms close
     to those of the simulated vertices. Every corner ball is grown by the largest such
-    deviation around it and MARGIN. The wall bottoms (scratch array `bottoms`) are worked
-    out only for strips without a simulated vertex in plain view.
+    deviation around it and MARGIN. How far the walls reach and their bottoms (scratch:
+    two arrays shaped like pos) are worked out only for strips without a simulated vertex
+    in plain view, and only where needed.
     """
     cones = shadow_cones(eye, occ)
+    n_occ = cones.shape[0]
+    V = pos.shape[1]
+    reach, bottoms = scratch
+    return _visible_strips_into(
+        pos,
+        (strip_strands, sigma),
+        (projection, bottoms, reach, np.zeros((2, V), dtype=np.bool_),
+         np.empty((projection.scalp.shape[0], 2))),
+        (eye, cones, holds_projection_sphere(projection, eye, cones, occ)),
+        (np.empty((2, V)), np.full((2, V), projection.fix_len), np.empty((2, V)),
+         np.empty((SPLIT_ROWS, 13)), np.empty((3, 2 * V)),
+         np.empty((n_occ, 2 * V))),
+        (np.empty(n_occ, dtype=np.int64), np.empty((n_occ, 6)),
+         np.empty(n_occ, dtype=np.bool_)),
+        out,
+    )
+
+
+@njit_without_refcounts
+def _visible_strips_into(pos, strips, walls, shadows, scratch, candidates_scratch, out):
+    """
+    visible_strips, given its scratch: no array is made here (no reference counts).
+
+    strips is (strip_strands, sigma); walls as _strip_hidden takes it; shadows (eye,
+    cones, which spheres hold S); scratch (grow, the fix-up length everywhere (2, V),
+    wall_extents, quad_in_shadow's pieces, points, depth); candidates_scratch (the
+    candidate spheres, their cones and which of them hold S).
+    """
+    strip_strands, sigma = strips
+    projection, bottoms, reach, worked, spans = walls
+    eye, cones, holds_s = shadows
+    grow, fix_ups, extents, work, points, depth = scratch
+    candidates, candidate_cones, candidate_holds_s = candidates_scratch
     n_strips = strip_strands.shape[0]
     V = pos.shape[1]
-    grow = np.empty((2, V))
-    last = 0                                     # the sphere that held the last piece
     n_occ = cones.shape[0]
-    spans = np.empty((projection.scalp.shape[0], 2))  # the wall bottoms' scratch
-    work = np.empty((SPLIT_ROWS, 13))           # quad_in_shadow's pieces
-    projected = np.zeros(V, dtype=np.bool_)      # rows whose wall bottoms are worked out
-    shadows = (eye, cones, holds_projection_sphere(projection, eye, cones, occ))
+    last = 0                                     # the sphere that held the last piece
+    fix = projection.fix_len
     count = 0
     for s in range(n_strips):
         a, b = strip_strands[s, 0], strip_strands[s, 1]
@@ -327,35 +524,74 @@ def visible_strips(pos,
                     break
             if vis:
                 break
-        if not vis:
-            for q in range(2):                   # the largest deviation around each vertex
-                st = a if q == 0 else b
-                for j in range(V):
-                    grow[q, j] = MARGIN
-                for j in range(1, V - 1):        # |P[j-1] - 2 P[j] + P[j+1]| / 6
-                    dx = pos[st, j - 1, 0] - 2 * pos[st, j, 0] + pos[st, j + 1, 0]
-                    dy = pos[st, j - 1, 1] - 2 * pos[st, j, 1] + pos[st, j + 1, 1]
-                    dz = pos[st, j - 1, 2] - 2 * pos[st, j, 2] + pos[st, j + 1, 2]
-                    g = sqrt(dx * dx + dy * dy + dz * dz) / 6.0 + MARGIN
-                    for r in range(j - 1, j + 2):
-                        if g > grow[q, r]:
-                            grow[q, r] = g
-            k = _held_with_any_walls(pos, (a, b), (0, V - 1), grow, projection, shadows, last)
-            if k >= 0:                           # hidden, walls and all: nothing projected
-                last = k
-                continue
-            projected[:] = False
-            k = _strip_hidden(pos,
-                              (s, strip_strands, sigma[s]),
-                              (projection, bottoms, projected, spans),
-                              grow,
-                              shadows,
-                              last,
-                              work)
-            vis = k < 0
-            if not vis:
-                last = k
         if vis:
+            out[count] = s
+            count += 1
+            continue
+        # Every simulated vertex is in some shadow. The ball around them all (centre c):
+        # a sphere that holds S and whose shadow holds that ball grown by the largest
+        # deviation and the fix-up holds the whole strip with its walls (as
+        # _held_with_any_walls); else the candidates are the spheres whose shadow reaches
+        # the ball at all (by the depth's bound, shadow_depth)
+        grow_max = _deviations(pos, (a, b), grow)
+        cx, cy, cz = 0.0, 0.0, 0.0
+        for q in range(2):
+            st = a if q == 0 else b
+            for j in range(V):
+                cx += pos[st, j, 0]
+                cy += pos[st, j, 1]
+                cz += pos[st, j, 2]
+        cx, cy, cz = cx / (2 * V), cy / (2 * V), cz / (2 * V)
+        rr = 0.0
+        for q in range(2):
+            st = a if q == 0 else b
+            for j in range(V):
+                dx, dy, dz = pos[st, j, 0] - cx, pos[st, j, 1] - cy, pos[st, j, 2] - cz
+                rr = max(rr, dx * dx + dy * dy + dz * dz)
+        radius = sqrt(rr)
+        nc = 0
+        first = 0                                # the candidate that is `last`
+        whole = -1
+        for i in range(n_occ):
+            k = _nth_sphere(last, i, n_occ)
+            dc = shadow_depth(cx, cy, cz, eye, cones, k)
+            if holds_s[k] and dc - radius >= grow_max + fix:
+                whole = k
+                break
+            if dc + radius >= 0.0:
+                if k == last:
+                    first = nc
+                candidates[nc] = k
+                candidate_holds_s[nc] = holds_s[k]
+                for d in range(6):
+                    candidate_cones[nc, d] = cones[k, d]
+                nc += 1
+        if whole >= 0:                           # hidden, walls and all, at once
+            last = whole
+            continue
+        for q in range(2):
+            st = a if q == 0 else b
+            for j in range(V):
+                for d in range(3):
+                    points[d, q * V + j] = pos[st, j, d]
+        near = candidate_cones[:nc]
+        near_holds_s = candidate_holds_s[:nc]
+        near_depth = depth[:nc]
+        shadow_depths(points, 2 * V, eye, near, near_depth)
+        held = _held_with_any_walls(near_depth, (0, V - 1), grow, fix_ups, near_holds_s,
+                                    first)
+        if held < 0:                             # not without working out the walls
+            worked[:] = False
+            held = _strip_hidden(pos,
+                                 (s, strip_strands, sigma[s]),
+                                 walls,
+                                 (grow, fix_ups, extents),
+                                 (eye, near, near_holds_s, near_depth),
+                                 first,
+                                 work)
+        if held >= 0:
+            last = candidates[held]
+        else:
             out[count] = s
             count += 1
     return count

@@ -85,6 +85,24 @@ def culled_triangles(local, strips, verts_per_strip):
     return out
 
 
+@njit(cache=True)
+def tessellate_visible_strips(pos, strips, lod, view, scratch, visible, grid):
+    """
+    Cull and tessellate in one call: write the strips that may be seen from the eye into
+    visible[:count] (culling.visible_strips) and their grids; return count.
+
+    strips is (strip_strands, sigma), lod (along, across), view (projection, eye,
+    occluding spheres). One call from Python instead of two: a call's arguments cost
+    about 2 us to pass, as much as a strip's U-shape.
+    """
+    strip_strands, sigma = strips
+    projection, eye, occ = view
+    count = culling.visible_strips(pos, strip_strands, sigma, projection, eye, occ, scratch,
+                                   visible)
+    ushape.tessellate_strips(pos, strip_strands, visible[:count], lod[0], lod[1], grid)
+    return count
+
+
 class HairRenderer:
     """Tessellate (Oslo), warp into U-shapes (3.2), texture and cull the strips of a style."""
 
@@ -122,8 +140,8 @@ class HairRenderer:
         self._out = np.zeros((self.n_strips, self.lod.verts_per_strip, 3))
         self._flags = np.zeros((self.n_strips, 2, self.lod.rows), dtype=np.int64)
         self._vis = np.zeros(self.n_strips, dtype=np.int64)   # visible strips, culling writes
-        self._culled = None             # (strips, their triangles) of the last culled mesh
-        self._bottoms = np.zeros_like(rest)
+        self._culled = None             # (strips as bytes, their triangles) of the last culled mesh
+        self._wall_scratch = (np.zeros_like(rest), np.zeros_like(rest))   # reach, bottoms
         self._walls = ushape.wall_scratch(len(head.scalp))    # ushape's scratch
         self._last_key = None
         self._last = None
@@ -182,7 +200,7 @@ class HairRenderer:
             projection,
             np.asarray(viewpoint, dtype=np.float64),
             occ,
-            self._bottoms,
+            self._wall_scratch,
             self._vis,
         )
         return self._vis[:count].copy()
@@ -195,14 +213,25 @@ class HairRenderer:
         """
         world = self._world(R, p)
         projection = world[0]
-        strips = self._all if viewpoint is None else self.visible(pos, R, p, viewpoint, world)
-        k = len(strips)
+        if viewpoint is None:
+            sel = self._all
+            k = len(sel)
+            ushape.tessellate_strips(pos, self.strip_strands, sel, self.lod.along,
+                                     self.lod.across, self._grid)
+        else:
+            k = tessellate_visible_strips(
+                pos,
+                (self.strip_strands, self.sigma),
+                (self.lod.along, self.lod.across),
+                (projection, np.asarray(viewpoint, dtype=np.float64), world[1]),
+                self._wall_scratch,
+                self._vis,
+                self._grid,
+            )
+            sel = self._vis[:k]
         grid = self._grid[:k]
         out = self._out[:k]
         flags = self._flags[:k]
-        sel = np.ascontiguousarray(strips, dtype=np.int64)
-        ushape.tessellate_strips(pos, self.strip_strands, sel, self.lod.along, self.lod.across,
-                                 grid)
         ushape.ushape(
             grid,
             self.sigma,
@@ -218,8 +247,9 @@ class HairRenderer:
             indices, uvs, offsets = topology.indices, topology.uvs, topology.strip_offsets
         else:
             # the same strips as last frame (the usual case): the same triangles
-            if self._culled is None or not np.array_equal(self._culled[0], sel):
-                self._culled = (sel.copy(), culled_triangles(self._local, sel, nv))
+            # (compared as bytes: a tenth of np.array_equal's cost on a few dozen strips)
+            if self._culled is None or self._culled[0] != sel.tobytes():
+                self._culled = (sel.tobytes(), culled_triangles(self._local, sel, nv))
             indices = self._culled[1]
             uvs = self._uvs_all[:k * nv]
             offsets = self._offsets_all[:k + 1]

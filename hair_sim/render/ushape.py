@@ -482,6 +482,57 @@ def ushape(grid,
 
 
 @njit_without_refcounts
+def strip_wall_reach(pos,
+                     strip_strands,
+                     s,
+                     projection,
+                     rows,
+                     out):
+    """
+    Write how far the U-shape walls below strip s's simulated vertices can reach.
+
+    A wall's bottom (strip_wall_bottoms) is on the segment from its edge point A to A'
+    (tangent_point) within max_dist of A, or else it is the fix-up, fix_len from A. So
+    the wall lies in the hull of the ball of radius fix_len around A and the segment from
+    A to out[a, j]: A + min(1, max_dist / |AA'|) (A' - A), without the bisection. Where
+    that segment, lengthened by delta, meets no scalp sphere grown by delta, the
+    bisection's point (within delta of where AA' enters the scalp) is farther than
+    max_dist and the wall is the fix-up: out[a, j] = A. Rows j0..j1 (rows = (j0, j1),
+    inclusive).
+    """
+    scalp, centre, rs = projection.scalp, projection.centre, projection.rs
+    delta, max_dist = projection.delta, projection.max_dist
+    l0, l1 = strip_strands[s, 0], strip_strands[s, 1]
+    for j in range(rows[0], rows[1] + 1):
+        for side in range(2):
+            a = l0 if side == 0 else l1
+            b = l1 if side == 0 else l0
+            ax, ay, az = pos[a, j, 0], pos[a, j, 1], pos[a, j, 2]
+            tx, ty, tz = tangent_point(ax, ay, az, pos[b, j, 0], pos[b, j, 1], pos[b, j, 2],
+                                       centre, rs)
+            vx, vy, vz = tx - ax, ty - ay, tz - az
+            vv = vx * vx + vy * vy + vz * vz
+            length = sqrt(vv)
+            f = max_dist / length if length > max_dist else 1.0
+            # does A + t (A' - A), 0 <= t <= (max_dist + delta) / |AA'|, meet the scalp?
+            # (the point of the segment nearest each sphere's centre is inside it)
+            t_end = (max_dist + delta) / length if vv > 0.0 else 0.0
+            inv_vv = 1.0 / vv if vv > 0.0 else 0.0
+            meets = False
+            for k in range(scalp.shape[0]):
+                wx, wy, wz = ax - scalp[k, 0], ay - scalp[k, 1], az - scalp[k, 2]
+                t = min(max(-(wx * vx + wy * vy + wz * vz) * inv_vv, 0.0), t_end)
+                cx, cy, cz = wx + t * vx, wy + t * vy, wz + t * vz
+                r = scalp[k, 3] + delta
+                meets |= cx * cx + cy * cy + cz * cz <= r * r
+            if not meets:
+                f = 0.0
+            out[a, j, 0] = ax + f * vx
+            out[a, j, 1] = ay + f * vy
+            out[a, j, 2] = az + f * vz
+
+
+@njit_without_refcounts
 def strip_wall_bottoms(pos,
                        strip_strands,
                        s,

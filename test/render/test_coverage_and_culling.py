@@ -3,9 +3,12 @@
 import numpy as np
 import pytest
 
+from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, paths
 from hair_sim.render import HairRenderer
 from hair_sim.render.coverage import coverage, hair_region_samples
 from hair_sim.render.raster import Camera, fibonacci_sphere, visible_strip_ids
+
+SHIPPED = ('bob_fringe', 'side_swept_long', 'thesis_long', 'thesis_short')
 
 
 def test_ushape_with_sphere_centre_covers_the_scalp(settled, renderer, capsys):
@@ -39,6 +42,78 @@ def test_culling_never_drops_a_strip_a_ray_hits(settled, renderer):
         assert seen <= drawn, (eye, seen - drawn)
         culled_any += full.n_strips - len(drawn)
     assert culled_any > 0
+
+
+def _shaken(name):
+    """Return a simulator of shipped style `name` after a head shake (strands off rest)."""
+    sim = HairSimulator(load_hairstyle(paths.shipped_style(name)))
+    for i in range(90):
+        t = (i + 1) * DEFAULT_DT
+        yaw = 0.6 * np.sin(2 * np.pi * 1.5 * t)
+        sim.set_head_pose(t, [0.0, 0.0, 0.02 * np.sin(2 * np.pi * t)],
+                          [0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)])
+        sim.step(DEFAULT_DT)
+    return sim
+
+
+@pytest.mark.parametrize('name', SHIPPED)
+def test_culling_of_every_style_never_drops_a_strip_a_ray_hits(name):
+    """Every shipped style, mid-shake, from 16 viewpoints: every strip a ray hits is drawn."""
+    sim = _shaken(name)
+    renderer = HairRenderer.for_simulator(sim)
+    full = renderer.mesh_of(sim)
+    R, p = sim.head_pose
+    spheres = sim.head.collision.copy()            # where the head is now (world)
+    spheres[:, :3] = spheres[:, :3] @ R.T + p
+    culled_any = 0
+    for eye in [np.array([0.8, 0.0, 0.0])] + list(0.7 * fibonacci_sphere(15)):
+        cam = Camera(eye, (0.0, 0.0, -0.05), fov_deg=40, width=256, height=256)
+        seen = visible_strip_ids(full, spheres, cam)
+        drawn = set(renderer.mesh_of(sim, viewpoint=eye).strip_ids.tolist())
+        assert seen <= drawn, (eye, seen - drawn)
+        culled_any += full.n_strips - len(drawn)
+    assert culled_any > 0
+
+
+def test_wall_bounds_culling_uses_hold_the_projected_walls():
+    """
+    Culling's bounds on a wall (wall_extents, strip_wall_reach) hold the wall bottoms the
+    projection of thesis 3.2 gives (strip_wall_bottoms), for every simulated vertex of
+    every shipped style mid-shake: within the extent of the edge point, and on the segment
+    from it to the reach point or within the fix-up length of it.
+    """
+    from hair_sim.render.culling import wall_extents
+    from hair_sim.render.ushape import strip_wall_bottoms, strip_wall_reach
+    kinds = {'fix-up': 0, 'on the segment': 0, 'extent is the fix-up': 0}
+    for name in SHIPPED:
+        sim = _shaken(name)
+        renderer = HairRenderer.for_simulator(sim)
+        R, p = sim.head_pose
+        projection, _ = renderer._world(R, p)
+        pos = sim.pos
+        V = pos.shape[1]
+        bottoms, reach = np.zeros_like(pos), np.zeros_like(pos)
+        spans = np.zeros((projection.scalp.shape[0], 2))
+        extents = np.zeros((2, V))
+        for s, (a, b) in enumerate(renderer.strip_strands):
+            strip_wall_bottoms(pos, renderer.strip_strands, s, renderer.sigma[s], projection,
+                               (0, V - 1), bottoms, spans)
+            strip_wall_reach(pos, renderer.strip_strands, s, projection, (0, V - 1), reach)
+            wall_extents(pos, (a, b), np.zeros((2, V)), projection, extents)
+            for q, st in enumerate((a, b)):
+                wall = bottoms[st] - pos[st]
+                length = np.linalg.norm(wall, axis=1)
+                assert np.all(length <= extents[q] + 1e-12), (name, s, q, length, extents[q])
+                seg = reach[st] - pos[st]
+                ss = np.einsum('ij,ij->i', seg, seg)
+                t = np.clip(np.einsum('ij,ij->i', wall, seg) / np.where(ss > 0, ss, 1.0), 0, 1)
+                off = np.linalg.norm(wall - t[:, None] * seg, axis=1)
+                fixed = np.abs(length - projection.fix_len) < 1e-12
+                assert np.all(fixed | (off <= 1e-9)), (name, s, q, off, length)
+                kinds['fix-up'] += int(fixed.sum())
+                kinds['on the segment'] += int((~fixed).sum())
+                kinds['extent is the fix-up'] += int(np.sum(extents[q] == projection.fix_len))
+    assert min(kinds.values()) > 0, kinds        # every kind of wall and bound was checked
 
 
 def test_front_view_skips_a_third(settled, renderer):
