@@ -55,6 +55,48 @@ def atan2_vectorizable(y, x):
     return copysign(a, y)
 
 
+# sin and cos on |z| <= pi/4 as polynomials, and pi/4 split in three for the reduction
+# (Cody and Waite): S. L. Moshier's Cephes library (sin.c, public domain)
+_SIN_C = (1.58962301576546568060e-10, -2.50507477628578072866e-8,
+          2.75573136213857245213e-6, -1.98412698295895385996e-4,
+          8.33333333332211858878e-3, -1.66666666666666307295e-1)
+_COS_C = (-1.13585365213876817300e-11, 2.08757008419747316778e-9,
+          -2.75573141792967388112e-7, 2.48015872888517045348e-5,
+          -1.38888888888730564116e-3, 4.16666666666665929218e-2)
+_DP1 = 7.85398125648498535156e-1
+_DP2 = 3.77489470793079817668e-8
+_DP3 = 2.69515142907905952645e-15
+_FOUR_OVER_PI = 4.0 / pi
+
+
+@njit_without_refcounts
+def sin_vectorizable(x):
+    """
+    Return sin(x) for finite |x| < 2^30, within a few ulp of libm's, without a branch.
+
+    A loop calling libm's sin is not vectorised; this is selects and arithmetic, so a loop
+    over many arguments runs four at a time (AVX2). x is reduced by the octant
+    j = floor(|x| 4 / pi), rounded up to even, to |z| <= pi/4, then the sine or cosine
+    polynomial is taken by the quadrant (j mod 8) and the sign restored (Cephes sin.c). The
+    reduction loses accuracy beyond 2^30; the kernels reduce their phases first.
+    """
+    a = abs(x)
+    y = np.floor(a * _FOUR_OVER_PI)
+    y = y + (y - 2.0 * np.floor(0.5 * y))         # rounded up to even (floats throughout:
+    j = y - 8.0 * np.floor(0.125 * y)             # AVX2 has no double-to-int64 conversion)
+    negative = (j > 3.0) != (copysign(1.0, x) < 0.0)     # (-0.0 keeps its sign)
+    z = ((a - y * _DP1) - y * _DP2) - y * _DP3
+    zz = z * z
+    c = _COS_C
+    s = _SIN_C
+    cos_z = 1.0 - 0.5 * zz + zz * zz * (((((c[0] * zz + c[1]) * zz + c[2]) * zz + c[3])
+                                         * zz + c[4]) * zz + c[5])
+    sin_z = z + z * zz * (((((s[0] * zz + s[1]) * zz + s[2]) * zz + s[3]) * zz + s[4])
+                          * zz + s[5])
+    r = cos_z if (j == 2.0) | (j == 6.0) else sin_z
+    return -r if negative else r
+
+
 @njit_without_refcounts
 def perpendicular_unit(wx, wy, wz, ux, uy, uz, eps):
     """

@@ -12,12 +12,12 @@ position guard that keeps vertices out of spheres. State goes in as namedtuples 
 """
 
 from collections import namedtuple
-from math import sin, sqrt
+from math import pi, sqrt
 
 import numpy as np
 
 from hair_sim.kernels import njit_without_refcounts
-from hair_sim.vecmath import nearest_on_spheres, perpendicular_unit
+from hair_sim.vecmath import nearest_on_spheres, perpendicular_unit, sin_vectorizable
 
 GUARD_MARGIN = 2e-4          # m: the position guard puts vertices this far outside spheres
 SEGMENT_TOLERANCE = 2e-4     # m: a segment's inner point deeper than this is pushed out
@@ -58,8 +58,10 @@ Forces = namedtuple('Forces', ['f_dist', 'f_end', 'contact'])
  CONTACT_LOAD, CONTACT_LOAD_MID) = range(9)
 CONTACT_FIELDS = 9
 CONTACT_SLOTS = 3
-WindField = namedtuple('WindField', ['velocity', 'amplitude', 'mode_dir', 'mode_k', 'mode_w',
-                                     'mode_phase'])
+# the modes' wave vectors by axis (3, modes), and scratch (2, modes): each mode's phase at
+# the step's time and its gust at a strand
+WindField = namedtuple('WindField', ['velocity', 'amplitude', 'mode_dir', 'mode_k_by_axis',
+                                     'mode_w', 'mode_phase', 'scratch'])
 # wall_rest: per pair, vertex and side, the distance within which a type-2 spring acts
 # at most (inf: the thesis' d2 alone; the articulated model: also at most the modeled one)
 StripSprings = namedtuple('StripSprings', ['pairs', 'rest1', 'wall_sign', 'wall_rest', 'rest3',
@@ -139,19 +141,40 @@ def strand_sphere_masks(root, reach, spheres, masks):
 
 
 @njit_without_refcounts
-def _wind_at(x, y, z, t, wind):
-    """Return the wind velocity at a point: mean plus the seeded turbulence modes."""
+def _winds_at_middles(pos, t, wind, out):
+    """
+    Write the wind velocity at each strand's middle vertex into out[s, 0]: the mean plus
+    the seeded turbulence modes, amplitude sin(k . x - w t + phase) along each mode's
+    direction.
+
+    Each mode's phase at t is reduced modulo 2 pi once, so that the argument stays a few
+    radians whatever the time; at each strand the modes' sines are one loop over the modes
+    with sin_vectorizable (vectorised: libm's sine is not, and it was half of this kernel's
+    time with gusts), summed after.
+    """
     base = wind.velocity
-    wx, wy, wz = base[0], base[1], base[2]
     amp = wind.amplitude
-    if amp > 0.0:
-        mdir, mk, mw, mph = wind.mode_dir, wind.mode_k, wind.mode_w, wind.mode_phase
-        for m in range(mdir.shape[0]):
-            s = amp * sin(mk[m, 0] * x + mk[m, 1] * y + mk[m, 2] * z - mw[m] * t + mph[m])
-            wx += s * mdir[m, 0]
-            wy += s * mdir[m, 1]
-            wz += s * mdir[m, 2]
-    return wx, wy, wz
+    mdir, k, mw, mph = wind.mode_dir, wind.mode_k_by_axis, wind.mode_w, wind.mode_phase
+    phase, gust = wind.scratch[0], wind.scratch[1]
+    n_modes = mw.shape[0]
+    for m in range(n_modes):
+        phase[m] = mph[m] - np.fmod(mw[m] * t, 2.0 * pi)
+    mid_v = pos.shape[1] // 2
+    for s in range(pos.shape[0]):
+        wx, wy, wz = base[0], base[1], base[2]
+        if amp <= 0.0:                           # a steady wind
+            out[s, 0, 0], out[s, 0, 1], out[s, 0, 2] = wx, wy, wz
+            continue
+        x, y, z = pos[s, mid_v, 0], pos[s, mid_v, 1], pos[s, mid_v, 2]
+        for m in range(n_modes):
+            gust[m] = amp * sin_vectorizable(k[0, m] * x + k[1, m] * y + k[2, m] * z + phase[m])
+        for m in range(n_modes):
+            wx += gust[m] * mdir[m, 0]
+            wy += gust[m] * mdir[m, 1]
+            wz += gust[m] * mdir[m, 2]
+        out[s, 0, 0] = wx
+        out[s, 0, 1] = wy
+        out[s, 0, 2] = wz
 
 
 @njit_without_refcounts
@@ -179,7 +202,8 @@ def external_forces(strands,
     pos, vel, length, mass = strands.pos, strands.vel, strands.length, strands.mass
     f_dist, f_end = forces.f_dist, forces.f_end
     n_s, n_seg = mass.shape
-    mid_v = (n_seg + 1) // 2
+    if wind_on:                  # each strand's wind, held in f_end[s, 0] until cleared
+        _winds_at_middles(pos, t, wind, f_end)
     for s in range(n_s):
         ax, ay, az = gravity[0], gravity[1], gravity[2]
         if root_inertia:
@@ -188,7 +212,7 @@ def external_forces(strands,
             az -= root_acc[s, 2]
         wx = wy = wz = 0.0
         if wind_on:
-            wx, wy, wz = _wind_at(pos[s, mid_v, 0], pos[s, mid_v, 1], pos[s, mid_v, 2], t, wind)
+            wx, wy, wz = f_end[s, 0, 0], f_end[s, 0, 1], f_end[s, 0, 2]
         for i in range(n_seg):
             m = mass[s, i]
             fx, fy, fz = m * ax, m * ay, m * az
@@ -203,9 +227,10 @@ def external_forces(strands,
                 if wind_on:
                     seg_len = length[s, i]
                     rx, ry, rz = wx - vx, wy - vy, wz - vz
-                    dx = (pos[s, i + 1, 0] - pos[s, i, 0]) / seg_len
-                    dy = (pos[s, i + 1, 1] - pos[s, i, 1]) / seg_len
-                    dz = (pos[s, i + 1, 2] - pos[s, i, 2]) / seg_len
+                    inv_len = 1.0 / seg_len
+                    dx = (pos[s, i + 1, 0] - pos[s, i, 0]) * inv_len
+                    dy = (pos[s, i + 1, 1] - pos[s, i, 1]) * inv_len
+                    dz = (pos[s, i + 1, 2] - pos[s, i, 2]) * inv_len
                     dot = rx * dx + ry * dy + rz * dz
                     rx -= dot * dx
                     ry -= dot * dy

@@ -34,8 +34,10 @@ class Wind:
         self.amplitude = turbulence * float(np.linalg.norm(v)) * np.sqrt(2.0 * 3.0 / N_MODES)
         # what the force kernel takes, built once per change
         self.field = WindField(velocity=self.velocity, amplitude=self.amplitude,
-                               mode_dir=self.mode_dir, mode_k=self.mode_k, mode_w=self.mode_w,
-                               mode_phase=self.mode_phase)
+                               mode_dir=self.mode_dir,
+                               mode_k_by_axis=np.ascontiguousarray(self.mode_k.T),
+                               mode_w=self.mode_w, mode_phase=self.mode_phase,
+                               scratch=np.zeros((2, N_MODES)))
         self._active = bool(np.any(self.velocity != 0.0))
 
     @property

@@ -20,7 +20,7 @@ from hair_sim.physics.forces import GUARD_MARGIN, guard_rest_shape, guard_segmen
 from hair_sim.physics.solvers.anjyo import (_direction, _moments_of_trig, _next_deviation,
                                             _recentre, BLOCK, EXPLICIT, IMPLICIT, POLE_COS,
                                             W_NEXT, W_NOW, W_PREV)
-from hair_sim.vecmath import atan2_vectorizable
+from hair_sim.vecmath import atan2_vectorizable, sin_vectorizable
 
 
 def random_chart(rng):
@@ -212,6 +212,53 @@ def test_atan2_vectorizable_is_libm_within_two_ulp(seed):
     expected = np.arctan2(y, x)
     assert np.all(np.abs(out - expected) <= 2.0 * np.spacing(np.abs(expected)))
     assert np.array_equal(np.signbit(out), np.signbit(expected))
+
+
+@njit(cache=True)
+def _sin_each(x, out):
+    for k in range(x.shape[0]):
+        out[k] = sin_vectorizable(x[k])
+
+
+@pytest.mark.parametrize('magnitude', [1e-300, 1e-8, 1.0, 30.0, 1e4, 1e8])
+def test_sin_vectorizable_is_libm_within_a_few_ulp_of_one(magnitude):
+    """Both signs, every octant, from 1e-300 up to 1e8 rad (the wind reduces to a few rad)."""
+    rng = np.random.default_rng(int(math.log10(magnitude) + 400))
+    x = rng.uniform(-magnitude, magnitude, 200_000)
+    x = np.concatenate([x, [0.0, -0.0, math.pi / 4, math.pi / 2, math.pi, -math.pi / 2]])
+    out = np.empty_like(x)
+    _sin_each(x, out)
+    expected = np.sin(x)
+    # within 2 ulp of 1 (as the reduction's error is, near a zero of sine the argument's
+    # own rounding is as large), and exactly x (with its sign) where sin(x) rounds to x
+    assert np.max(np.abs(out - expected)) <= 2.0 * np.spacing(1.0)
+    tiny = np.abs(x) < 1e-8
+    assert np.array_equal(out[tiny], x[tiny])
+    assert np.array_equal(np.signbit(out[tiny]), np.signbit(x[tiny]))
+
+
+@pytest.mark.parametrize('t', [0.0, 1.37, 86_400.0])
+def test_the_wind_at_each_strand_is_the_sum_of_its_modes(t):
+    """
+    The force kernel's wind at each strand's middle (phases reduced, a vectorised sine)
+    equals the mean plus amplitude sin(k . x - w t + phase) of each mode along its
+    direction, evaluated here with numpy, a day into a run too.
+    """
+    from hair_sim.physics.forces import _winds_at_middles
+    from hair_sim.physics.wind import Wind
+    wind = Wind()
+    wind.set([3.0, -1.0, 0.5], turbulence=0.7, seed=11)
+    rng = np.random.default_rng(3)
+    pos = rng.normal(size=(40, 9, 3)) * 0.3
+    out = np.zeros((40, 8, 3))
+    _winds_at_middles(pos, t, wind.field, out)
+    mid = pos[:, 9 // 2]
+    arg = mid @ wind.mode_k.T - wind.mode_w * t + wind.mode_phase          # (40, modes)
+    expected = wind.velocity + (wind.amplitude * np.sin(arg)) @ wind.mode_dir
+    # the argument's rounding: about (w t) * 1e-16 rad
+    tol = 1e-14 + wind.amplitude * len(wind.mode_w) * max(1.0, wind.mode_w.max() * t) * 4e-16
+    assert np.max(np.abs(out[:, 0] - expected)) <= tol
+    assert np.max(np.abs(out[:, 0] - wind.velocity)) > 0.1 * wind.amplitude   # gusts are there
 
 
 @pytest.mark.parametrize('n_segments', [7, 50, 300])
