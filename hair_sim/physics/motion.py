@@ -29,7 +29,8 @@ HISTORY = 32                 # samples kept (bounded memory under floods)
 
 def quat_to_matrix(q):
     """Return the rotation matrix of a unit quaternion (x, y, z, w)."""
-    x, y, z, w = (float(c) for c in q)      # Python floats: numpy scalars cost 10x an op
+    x, y, z, w = np.asarray(q, dtype=np.float64).tolist()   # Python floats: numpy scalars
+                                                            # cost 10x an op
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
@@ -111,7 +112,7 @@ def slerp(q0, q1, f):
         q1, d = -q1, -d
     if d > 0.9995:
         q = q0 + f * (q1 - q0)
-        return q / np.linalg.norm(q)
+        return q / math.sqrt(float(q @ q))
     th = math.acos(d)
     return (math.sin((1 - f) * th) * q0 + math.sin(f * th) * q1) / math.sin(th)
 
@@ -142,11 +143,14 @@ class HeadMotion:
         except (TypeError, ValueError):
             self.counts['invalid'] += 1
             return 'invalid'
-        # (np.linalg.norm of a 1-D array is sqrt(q . q): the same number, without its
-        # overhead, which was half of a pose's cost)
-        n = math.sqrt(float(q @ q)) if np.isfinite(q).all() else float('nan')
-        if not (np.isfinite(p).all() and math.isfinite(n) and math.isfinite(stamp)) \
-                or n < 1e-6 or np.abs(p).max() > 1e6:
+        # checked on Python floats: numpy's reductions on 3 and 4 numbers (isfinite().all(),
+        # abs().max(), norm) were most of a pose's cost, paid at every step
+        px, py, pz = p.tolist()
+        qx, qy, qz, qw = q.tolist()
+        n = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+        # (a NaN or infinity anywhere makes the sum of the magnitudes non-finite)
+        if not (math.isfinite(abs(px) + abs(py) + abs(pz) + n) and math.isfinite(stamp)) \
+                or n < 1e-6 or max(abs(px), abs(py), abs(pz)) > 1e6:
             self.counts['invalid'] += 1
             return 'invalid'
         verdict = 'ok'
@@ -187,8 +191,9 @@ class HeadMotion:
             _, _, p0, q0 = prev
             # the head will cover the jump between now (or the last sample) and t
             dt = max(t - max(self.samples[-1][0], now) if self.samples else t - now, 1e-3)
-            dist = float(np.linalg.norm(p - p0))
-            ang = 2.0 * math.acos(min(1.0, abs(float(np.dot(q, q0)))))
+            (ax, ay, az), (bx, by, bz, bw) = p0.tolist(), q0.tolist()
+            dist = math.sqrt((px - ax) ** 2 + (py - ay) ** 2 + (pz - az) ** 2)
+            ang = 2.0 * math.acos(min(1.0, abs(qx * bx + qy * by + qz * bz + qw * bw) / n))
             if (dist > TELEPORT_DISTANCE and dist / dt > self.params.max_head_speed) or \
                     (ang > TELEPORT_ANGLE and ang / dt > self.params.max_head_angular_speed):
                 self.counts['teleport'] += 1

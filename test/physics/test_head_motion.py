@@ -41,11 +41,17 @@ def test_invalid_and_unnormalised_poses(long_style):
     assert sim.set_head_pose(t + 0.01, [0, 0, 0], [0, 0, 0, 0]) == 'invalid'
     assert sim.set_head_pose(t + 0.01, [0, 0, 0], [0, 0, math.inf, 1]) == 'invalid'
     assert sim.set_head_pose(math.nan, [0, 0, 0], ID) == 'invalid'
+    assert sim.set_head_pose(t + 0.01, [0, -math.inf, 0], ID) == 'invalid'
+    assert sim.set_head_pose(t + 0.01, [0, 0, 0], [math.nan, 0, 0, 1]) == 'invalid'
+    assert sim.set_head_pose(t + 0.01, [0, 0, 2e6], ID) == 'invalid'
+    assert sim.set_head_pose(t + 0.01, [0, 0, 0], [1e200, 0, 0, 1e200]) == 'invalid'
+    assert sim.set_head_pose(t + 0.01, [0, 0], ID) == 'invalid'
+    assert sim.set_head_pose(math.inf, [0, 0, 0], ID) == 'invalid'
     assert sim.set_head_pose(t + 0.01, [0, 0, 0], [0, 0, 0, 3.0]) == 'normalised'
     for _ in range(10):
         sim.step(DEFAULT_DT)
     assert np.all(np.isfinite(sim.strand_positions()))
-    assert sim.motion.counts['invalid'] == 4
+    assert sim.motion.counts['invalid'] == 10
 
 
 def test_teleport_carries_the_hair_rigidly(long_style):
