@@ -142,6 +142,7 @@ class HairRenderer:
         self._vis = np.zeros(self.n_strips, dtype=np.int64)   # visible strips, culling writes
         self._culled = None             # (strips as bytes, their triangles) of the last culled mesh
         self._wall_scratch = (np.zeros_like(rest), np.zeros_like(rest))   # reach, bottoms
+        self._collision = head.collision      # (head frame; stacked once, not every frame)
         self._walls = ushape.wall_scratch(len(head.scalp))    # ushape's scratch
         self._last_key = None
         self._last = None
@@ -180,7 +181,7 @@ class HairRenderer:
     def _world(self, R, p):
         scalp = self.head.scalp.copy()
         scalp[:, :3] = scalp[:, :3] @ R.T + p
-        occ = self.head.collision.copy()
+        occ = self._collision.copy()
         occ[:, :3] = occ[:, :3] @ R.T + p
         occ[:, 3] -= 1e-4                      # a shade smaller: culling stays conservative
         centre = self.head.projection_sphere[:3] @ R.T + p
