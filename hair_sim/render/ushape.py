@@ -513,11 +513,12 @@ def strip_wall_reach(pos,
             vx, vy, vz = tx - ax, ty - ay, tz - az
             vv = vx * vx + vy * vy + vz * vz
             length = sqrt(vv)
-            f = max_dist / length if length > max_dist else 1.0
+            inv_len = 1.0 / length if vv > 0.0 else 0.0      # (one division for the three)
+            f = max_dist * inv_len if length > max_dist else 1.0
             # does A + t (A' - A), 0 <= t <= (max_dist + delta) / |AA'|, meet the scalp?
             # (the point of the segment nearest each sphere's centre is inside it)
-            t_end = (max_dist + delta) / length if vv > 0.0 else 0.0
-            inv_vv = 1.0 / vv if vv > 0.0 else 0.0
+            t_end = (max_dist + delta) * inv_len
+            inv_vv = inv_len * inv_len
             meets = False
             for k in range(scalp.shape[0]):
                 wx, wy, wz = ax - scalp[k, 0], ay - scalp[k, 1], az - scalp[k, 2]
