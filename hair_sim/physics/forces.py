@@ -143,14 +143,13 @@ def strand_sphere_masks(root, reach, spheres, masks):
 @njit_without_refcounts
 def _winds_at_middles(pos, t, wind, out):
     """
-    Write the wind velocity at each strand's middle vertex into out[s, 0]: the mean plus
-    the seeded turbulence modes, amplitude sin(k . x - w t + phase) along each mode's
-    direction.
+    Write the wind velocity at each strand's middle vertex into out[s, 0].
 
-    Each mode's phase at t is reduced modulo 2 pi once, so that the argument stays a few
-    radians whatever the time; at each strand the modes' sines are one loop over the modes
-    with sin_vectorizable (vectorised: libm's sine is not, and it was half of this kernel's
-    time with gusts), summed after.
+    It is the mean plus the seeded turbulence modes, amplitude sin(k . x - w t + phase)
+    along each mode's direction. Each mode's phase at t is reduced modulo 2 pi once, so
+    that the argument stays a few radians whatever the time; at each strand the modes'
+    sines are one loop over the modes with sin_vectorizable (vectorised: libm's sine is
+    not, and it was half of this kernel's time with gusts), summed after.
     """
     base = wind.velocity
     amp = wind.amplitude

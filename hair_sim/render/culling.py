@@ -353,12 +353,12 @@ def wall_extents(pos, strands, grow, projection, out):
 @njit_without_refcounts
 def _deviations(pos, strands, grow):
     """
-    Write grow (2, V): MARGIN and the largest deviation of the drawn edges around each
-    simulated vertex of strands (a, b); return the largest.
+    Write grow (2, V), how far the drawn edges stray; return its largest value.
 
-    The drawn edge is an Oslo refinement of the simulated edge polygon and lies within
-    |P[j-1] - 2 P[j] + P[j+1]| / 6 of it (refined control polygons of a cubic B-spline
-    stay between the control polygon and the curve).
+    grow[q, j] is MARGIN and the largest deviation of the drawn edges around simulated
+    vertex j of strand q of (a, b). The drawn edge is an Oslo refinement of the simulated
+    edge polygon and lies within |P[j-1] - 2 P[j] + P[j+1]| / 6 of it (refined control
+    polygons of a cubic B-spline stay between the control polygon and the curve).
     """
     V = pos.shape[1]
     largest = MARGIN

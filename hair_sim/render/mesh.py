@@ -88,12 +88,13 @@ def culled_triangles(local, strips, verts_per_strip):
 @njit(cache=True)
 def tessellate_visible_strips(pos, strips, lod, view, scratch, visible, grid):
     """
-    Cull and tessellate in one call: write the strips that may be seen from the eye into
-    visible[:count] (culling.visible_strips) and their grids; return count.
+    Cull and tessellate in one call; return how many strips may be seen.
 
-    strips is (strip_strands, sigma), lod (along, across), view (projection, eye,
-    occluding spheres). One call from Python instead of two: a call's arguments cost
-    about 2 us to pass, as much as a strip's U-shape.
+    The strips that may be seen from the eye go into visible[:count]
+    (culling.visible_strips), their grids into grid. strips is (strip_strands, sigma), lod
+    (along, across), view (projection, eye, occluding spheres). One call from Python
+    instead of two: a call's arguments cost about 2 us to pass, as much as a strip's
+    U-shape.
     """
     strip_strands, sigma = strips
     projection, eye, occ = view
@@ -140,7 +141,7 @@ class HairRenderer:
         self._out = np.zeros((self.n_strips, self.lod.verts_per_strip, 3))
         self._flags = np.zeros((self.n_strips, 2, self.lod.rows), dtype=np.int64)
         self._vis = np.zeros(self.n_strips, dtype=np.int64)   # visible strips, culling writes
-        self._culled = None             # (strips as bytes, their triangles) of the last culled mesh
+        self._culled = None             # (strips as bytes, their triangles), last culled mesh
         self._wall_scratch = (np.zeros_like(rest), np.zeros_like(rest))   # reach, bottoms
         self._collision = head.collision      # (head frame; stacked once, not every frame)
         self._walls = ushape.wall_scratch(len(head.scalp))    # ushape's scratch

@@ -240,9 +240,11 @@ def test_sin_vectorizable_is_libm_within_a_few_ulp_of_one(magnitude):
 @pytest.mark.parametrize('t', [0.0, 1.37, 86_400.0])
 def test_the_wind_at_each_strand_is_the_sum_of_its_modes(t):
     """
-    The force kernel's wind at each strand's middle (phases reduced, a vectorised sine)
-    equals the mean plus amplitude sin(k . x - w t + phase) of each mode along its
-    direction, evaluated here with numpy, a day into a run too.
+    The force kernel's wind at each strand's middle is the sum of its modes.
+
+    The kernel reduces the phases and takes a vectorised sine; here the mean plus
+    amplitude sin(k . x - w t + phase) of each mode along its direction is evaluated with
+    numpy, a day into a run too.
     """
     from hair_sim.physics.forces import _winds_at_middles
     from hair_sim.physics.wind import Wind

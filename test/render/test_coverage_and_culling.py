@@ -77,10 +77,12 @@ def test_culling_of_every_style_never_drops_a_strip_a_ray_hits(name):
 
 def test_wall_bounds_culling_uses_hold_the_projected_walls():
     """
-    Culling's bounds on a wall (wall_extents, strip_wall_reach) hold the wall bottoms the
-    projection of thesis 3.2 gives (strip_wall_bottoms), for every simulated vertex of
-    every shipped style mid-shake: within the extent of the edge point, and on the segment
-    from it to the reach point or within the fix-up length of it.
+    Culling's bounds on a wall hold the wall bottoms the projection gives.
+
+    The bounds are wall_extents and strip_wall_reach; the bottoms, strip_wall_bottoms
+    (thesis 3.2). For every simulated vertex of every shipped style mid-shake, the bottom
+    is within the extent of the edge point, and on the segment from it to the reach point
+    or within the fix-up length of it.
     """
     from hair_sim.render.culling import wall_extents
     from hair_sim.render.ushape import strip_wall_bottoms, strip_wall_reach
