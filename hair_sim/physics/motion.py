@@ -29,8 +29,8 @@ HISTORY = 32                 # samples kept (bounded memory under floods)
 
 def quat_to_matrix(q):
     """Return the rotation matrix of a unit quaternion (x, y, z, w)."""
-    x, y, z, w = np.asarray(q, dtype=np.float64).tolist()   # Python floats: numpy scalars
-                                                            # cost 10x an op
+    # Python floats: numpy scalars cost 10x an op
+    x, y, z, w = np.asarray(q, dtype=np.float64).tolist()
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
@@ -124,6 +124,7 @@ class HeadMotion:
         self.params = params
         self.samples = deque(maxlen=HISTORY)       # (sim time, stamp, position, quaternion)
         self.offset = None                         # stamp - simulator time
+        self.anchors = 0                           # times the offset was (re)set from a pose
         self.counts = {'accepted': 0, 'invalid': 0, 'repeated': 0, 'out_of_order': 0,
                        'clock_jump': 0, 'teleport': 0, 'normalised': 0}
         self.teleported = False
@@ -174,6 +175,7 @@ class HeadMotion:
         if self.offset is None:
             # the first pose (or the first after the clock jumped back) anchors the clock
             self.offset = stamp - now
+            self.anchors += 1
             if prev is None:                # the very first places the head: no kick
                 self.teleported = True
             else:
@@ -182,6 +184,7 @@ class HeadMotion:
         t = stamp - self.offset
         if self.samples and (t > now + MAX_LEAD or t < now - MAX_GAP):
             self.offset = stamp - now
+            self.anchors += 1
             t = now
             self.counts['clock_jump'] += 1
             verdict = 'clock_jump'

@@ -49,6 +49,7 @@ from hair_sim.physics.params import PhysicsParams
 from hair_sim.physics.simulator import HairSimulator, SimulationDiverged, stability_problem
 from hair_sim.render.mesh import HairRenderer
 from hair_sim.ros.params import all_parameters, PHYSICS
+from hair_sim.ros.pose_lead import PoseLead
 from hair_sim.ros.scene import Scene, SceneBuilder
 from hair_sim.sinks.markers import (delete_all_markers, head_marker_cdr, head_sphere_markers,
                                     MarkerEncoder, MarkerLayout)
@@ -130,6 +131,7 @@ class HairSimNode(Node):
         self._topology_sent = None        # scene version whose topology was last sent
         self._clock_last = None
         self._acc = 0.0
+        self.pose_lead = PoseLead()       # how early poses land; slews latency none needs away
         self.meshcat = None
         self.meshcat_url = None
         self.publish_ms = deque(maxlen=2000)          # publish callback durations
@@ -493,8 +495,21 @@ class HairSimNode(Node):
         verdict = self.sim.set_head_pose(t, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
         if verdict in ('invalid', 'repeated', 'out_of_order'):
             self._refuse('pose_' + verdict, 'head_pose %s' % verdict.replace('_', ' '))
-        elif self._tf_pub is not None and self._p('publish_tf'):
+            return
+        self._note_pose_lead(t)
+        if self._tf_pub is not None and self._p('publish_tf'):
             self._publish_tf(msg)
+
+    def _note_pose_lead(self, stamp):
+        """Note how far ahead of the simulator's clock the pose stamped `stamp` landed."""
+        motion = self.sim.motion
+        if self._clock_last is None or motion.offset is None:
+            return                        # the simulator's clock has not started
+        now = self.get_clock().now().nanoseconds * 1e-9
+        # the simulator's clock now: its time, the part of a step owed, the time since
+        # the last frame
+        sim_now = self.sim.time + self._acc + max(0.0, now - self._clock_last)
+        self.pose_lead.note(motion, now, stamp - motion.offset - sim_now)
 
     @guarded('wind')
     def _on_wind(self, msg):
@@ -545,6 +560,9 @@ class HairSimNode(Node):
         else:
             self._acc -= n * h
         sim = self.sim
+        step = self.pose_lead.slew(now, elapsed)
+        if step > 0.0:                    # poses land early: follow them sooner
+            sim.skip_time(step)
         try:
             for _ in range(n):
                 sim.step(h)
@@ -688,6 +706,10 @@ class HairSimNode(Node):
         values['refused_total'] = str(sum(self.refused.values()))
         if self.publish_ms:
             values['publish_ms_median'] = '%.3f' % float(np.median(self.publish_ms))
+        values['pose_clock_slewed_ms'] = '%.1f' % (1e3 * self.pose_lead.slewed)
+        least = self.pose_lead.least(self.get_clock().now().nanoseconds * 1e-9)
+        if least is not None:
+            values['pose_lead_ms_min'] = '%.1f' % (1e3 * least)
         if self.latency_ms:
             lat = np.asarray(self.latency_ms)
             values['latency_ms_p50'] = '%.1f' % float(np.percentile(lat, 50))
