@@ -24,6 +24,7 @@ from collections import deque
 WINDOW = 1.0          # s of arrivals the least lead is taken over
 MIN_SPAN = 0.5        # s of arrivals needed before anything moves
 MIN_POSES = 5
+MAX_POSES = 4096     # kept at most (a flood of poses keeps the newest)
 MARGIN = 0.002        # s a pose may land ahead of the simulator's clock, at the least
 RATE = 0.05           # s the mapping moves per s, at most
 
@@ -32,7 +33,7 @@ class PoseLead:
     """The leads of the last WINDOW seconds of poses, and the slew they call for."""
 
     def __init__(self):
-        self._leads = deque()        # (arrival on the node's clock, lead + shift at arrival)
+        self._leads = deque(maxlen=MAX_POSES)  # (arrival on the node's clock, lead + shift)
         self._shift = 0.0            # s the mapping was moved on since the anchor
         self._anchor = None          # (HeadMotion, its anchor count) the leads belong to
         self.slewed = 0.0            # s moved on in all

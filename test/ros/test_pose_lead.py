@@ -94,3 +94,15 @@ def test_a_new_anchor_forgets_the_leads_of_the_old():
     lead.note(motion, 1.0, 0.0)
     assert lead.least(1.0) == 0.0
     assert lead.slew(1.0, 1.0 / 60.0) == 0.0       # one pose: no evidence yet
+
+
+def test_a_flood_of_poses_keeps_the_memory_bounded():
+    """A million poses within one window: the newest MAX_POSES are kept, and decide."""
+    motion = HeadMotion(PhysicsParams())
+    motion.add(0.0, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], now=0.0)
+    lead = PoseLead()
+    n = 1_000_000
+    for i in range(n):
+        lead.note(motion, 0.9 * i / n, 0.0 if i < n - pose_lead.MAX_POSES else 0.05)
+    assert len(lead._leads) == pose_lead.MAX_POSES
+    assert lead.least(0.9) == 0.05
