@@ -3,9 +3,11 @@ Compile the node's per-frame kernels into numba's on-disk cache before a first r
 
 numba compiles a kernel at its first call; cache=True keeps the machine code on disk (in
 the package's __pycache__) for every later process. Without this, a fresh install's first
-`make demo` compiled for seconds before its first message: measured from a subscriber in
-another process, the first hair_mesh came 6.0 s after `make demo` started, against 0.8 s
-with the cache warm. `make setup` runs this once (and again when a source file changes).
+`make demo` compiled for seconds: measured from a subscriber in another process, its
+first hair_state came 5.5 s after it started, then none for 10.4 s while the physics
+compiled (30 Hz from 16.9 s); with the cache warm, 30 Hz from 0.8 s. The node's first
+switch to the articulated model compiled for about 11 s more, in the middle of a run.
+`make setup` runs this once (and again when a source file changes).
 
 It runs the node itself, in a private ROS context with meshcat off, and calls its
 callbacks as its timers would, for both strand models: head poses, frames, publishing

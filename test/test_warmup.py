@@ -1,8 +1,8 @@
 """
 `make setup`'s warm-up: after it, the demo's node compiles no kernel.
 
-numba compiles at a kernel's first call; a fresh install's first `make demo` published after
-6 s. The warm-up (python -m hair_sim.warmup) drives the node's callbacks for both strand
+numba compiles at a kernel's first call; a fresh install's first `make demo` stalled for
+10 s compiling. The warm-up (python -m hair_sim.warmup) drives the node's callbacks for both strand
 models so that numba's on-disk cache holds them. Checked in a cache directory of its own,
 with numba's cache log: the warm-up saves kernels, then the demo run as `make demo` runs it
 loads them and saves none (a kernel the warm-up missed would be compiled and saved there).
