@@ -43,10 +43,11 @@ class PoseLead:
         Note a pose's lead (s) under `motion`'s current anchor, arrived at `arrival` (s).
 
         A new anchor (a first pose, a clock jump, another simulator) starts afresh: the
-        leads under the old one say nothing of the new mapping.
+        leads under the old one say nothing of the new mapping. So does an arrival before
+        the last one: the node's clock jumped back (a looping bag's /clock).
         """
         anchor = (motion, motion.anchors)
-        if anchor != self._anchor:
+        if anchor != self._anchor or (self._leads and arrival < self._leads[-1][0]):
             self._leads.clear()
             self._shift = 0.0
             self._anchor = anchor

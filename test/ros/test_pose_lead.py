@@ -106,3 +106,16 @@ def test_a_flood_of_poses_keeps_the_memory_bounded():
         lead.note(motion, 0.9 * i / n, 0.0 if i < n - pose_lead.MAX_POSES else 0.05)
     assert len(lead._leads) == pose_lead.MAX_POSES
     assert lead.least(0.9) == 0.05
+
+
+def test_a_node_clock_that_jumps_back_forgets_the_arrivals_after_it():
+    """A looping bag's clock: the arrivals from before the jump back are forgotten."""
+    motion = HeadMotion(PhysicsParams())
+    motion.add(0.0, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], now=0.0)
+    lead = PoseLead()
+    for i in range(100):
+        lead.note(motion, 50.0 + 0.01 * i, 0.0)          # on time, before the jump back
+    for i in range(100):
+        lead.note(motion, 10.0 + 0.01 * i, 0.05)         # then poses landing 50 ms early
+    assert lead.least(11.0) == pytest.approx(0.05)
+    assert lead.slew(11.0, 1.0 / 60.0) == pytest.approx(pose_lead.RATE / 60.0)
