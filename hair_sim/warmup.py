@@ -12,44 +12,45 @@ switch to the articulated model compiled for about 11 s more, in the middle of a
 It runs the node itself, in a private ROS context with meshcat off, and calls its
 callbacks as its timers would, for both strand models: head poses, frames, publishing
 (hair_mesh, hair_state, markers, head markers, culled and whole meshes), diagnostics. The
-same code as the node, so the same kernels with the same argument types. Nothing spins
-and nothing leaves the machine: discovery is kept to this host, in a ROS domain of its own
-(as the tests do), so a build does not show up in a running RViz or take a tracker's poses.
+same code as the node, so the same kernels with the same argument types. Nothing spins,
+so no message is taken in; the node lives for the seconds of the build in a ROS domain of
+its own (100-200, as the tests pick), so a running RViz does not show its frames. The
+discovery range stays the user's setting.
 
     python -m hair_sim.warmup
 """
 
-import math
 import os
 import random
 import sys
 import time
 
 
-def _pose(t):
-    """Return a PoseStamped of a head turning and nodding, stamped t (s)."""
+def _pose(t, t0):
+    """Return a PoseStamped of the demo's head motion at t - t0, stamped t (s)."""
     from geometry_msgs.msg import PoseStamped
+
+    from hair_sim.bench.scenarios import demo
+    from hair_sim.ros.node import _stamp
     msg = PoseStamped()
     msg.header.frame_id = 'world'
-    msg.header.stamp.sec = int(t)
-    msg.header.stamp.nanosec = int((t - int(t)) * 1e9)
-    yaw, pitch = 0.4 * math.sin(2.0 * t), 0.2 * math.sin(3.0 * t)
-    cy, sy, cp, sp = math.cos(yaw / 2), math.sin(yaw / 2), math.cos(pitch / 2), math.sin(pitch / 2)
-    msg.pose.position.z = 0.01 * math.sin(5.0 * t)
-    msg.pose.orientation.x, msg.pose.orientation.y = -sy * sp, cy * sp
-    msg.pose.orientation.z, msg.pose.orientation.w = sy * cp, cy * cp
+    msg.header.stamp.sec, msg.header.stamp.nanosec = _stamp(t)
+    p, q = demo(t - t0)
+    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = map(float, p)
+    (msg.pose.orientation.x, msg.pose.orientation.y, msg.pose.orientation.z,
+     msg.pose.orientation.w) = map(float, q)
     return msg
 
 
-def _drive(node, frames, t0):
-    """Call the node's callbacks as its timers and subscriptions would, `frames` times."""
+def _drive(node, t0, frames):
+    """Call the node's callbacks as its timers would, for frames `frames` from t0 (s)."""
     from hair_sim_msgs.msg import Wind
     wind = Wind()
     wind.velocity.x, wind.velocity.y, wind.turbulence, wind.seed = 3.0, 1.0, 0.5, 3
     node._on_wind(wind)
-    for i in range(frames):
+    for i in frames:
         t = t0 + i / 60.0
-        node._on_pose(_pose(t))
+        node._on_pose(_pose(t, t0))
         node._on_frame()
         node._clock_last -= 1.0 / 60.0            # a frame's time has passed, as if waited
         node._on_publish()
@@ -57,7 +58,7 @@ def _drive(node, frames, t0):
     node._on_diagnostics()
 
 
-def main(argv=None):
+def main():
     """Run the node's frames for both strand models and culled meshes; print the time."""
     import rclpy
     from rclpy.context import Context
@@ -65,9 +66,7 @@ def main(argv=None):
 
     from hair_sim.ros.node import HairSimNode
 
-    del argv                               # no options
     start = time.perf_counter()
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ['ROS_DOMAIN_ID'] = str(random.Random(os.getpid()).randint(100, 200))
     context = Context()
     rclpy.init(context=context, args=['--ros-args', '-p', 'meshcat.enabled:=false'])
@@ -75,11 +74,11 @@ def main(argv=None):
     try:
         node = HairSimNode(context=context)
         t0 = node.get_clock().now().nanoseconds * 1e-9
-        _drive(node, 8, t0)
+        _drive(node, t0, range(0, 8))
         node.set_parameters([Parameter('use_viewpoint', value=True)])   # culled meshes
-        _drive(node, 4, t0 + 8 / 60.0)
+        _drive(node, t0, range(8, 12))
         node.set_parameters([Parameter('physics.model', value='articulated')])
-        _drive(node, 8, t0 + 12 / 60.0)
+        _drive(node, t0, range(12, 20))
         errors = sum(node.errors.values())
     finally:
         if node is not None:
