@@ -78,13 +78,14 @@ class HairSimulator:
                          'kernel_calls': 0, 'broad_phase_checks': 0, 'contacts': 0,
                          'diverged': 0,
                          'wall_springs': 0, 'recharts': 0, 'guard_moves': 0, 'wakes': 0,
-                         'turn_clamps': 0, 'substeps': 0, 'retried_steps': 0}
+                         'turn_clamps': 0, 'substeps': 0, 'strand_substeps': 0,
+                         'retried_steps': 0}
         self.last_step_time = 0.0
         self.stability_dt = DEFAULT_DT      # the step set_params checks stability at
         self.state_version = 0              # bumped whenever positions may have changed
         self.layout_version = 0             # bumped whenever a kernel argument's type may change
         self.broad_phase = True             # skip spheres a strand cannot reach
-        self._last_substeps = 1             # how many substeps the last step took
+        self._last_substeps = 1             # how many substeps each strand took last step
         self._R = np.eye(3)
         self._p = np.zeros(3)
 
@@ -169,6 +170,8 @@ class HairSimulator:
         self.root_acc = np.zeros((n_s, 3))
         self._proj = np.zeros((n_s, n_seg + 1, 3))
         self._pos_mid = np.zeros((n_s, n_seg + 1, 3))     # where a model takes its forces
+        self._whole_h = np.zeros(n_s)          # every strand's step when none is split
+        self._whole_h_of = None                # the step _whole_h holds
         self._snapshot = None                               # _saved()'s buffers
         self._spheres = np.zeros_like(self.spheres_head)
         self._sphere_vel = np.zeros((len(self.spheres_head), 3))
@@ -465,25 +468,55 @@ class HairSimulator:
         self.last_step_time = _time.perf_counter() - t0
         return True
 
-    def _simulate(self, t, h, substeps=1):
+    def _simulate(self, t, h, at_least=1):
         """
         One awake step: the shared forces (eqs. 5, 7-11), then the strand model.
 
-        A model may ask for the step to be split (the articulated chain does when a segment
-        would turn too far in one step), into at least `substeps`; every substep recomputes
-        the forces. Returns the number of substeps taken.
+        A model may ask for the step to be split per strand (the articulated chain does
+        where a segment would turn too far in one step), into at least `at_least`
+        substeps (an int or one per strand); every substep recomputes the forces.
+        Strands joined by inter-strip springs share the largest count: stepped at their
+        own rates, a strand the gale flung 40 cm in one coarse step stretched the springs
+        of a neighbour taking fine ones, and the stress bench's gale diverged. Strands on
+        their own (no springs between them) each take their count rounded up to a power
+        of two (multirate): the step runs as many substeps as the finest strand takes,
+        and each strand moves at the substeps where one of its own ends, by its own
+        length (waiting at the others), so a strand at rest beside a whipping one takes
+        the step whole, exactly as it would alone. Returns each strand's count.
         """
-        n = max(self.solver.substeps_for(h), substeps)
-        for k in range(n):
-            self._substep(t - h + (k + 1) * h / n, h / n)
+        counts = self.solver.substeps_for(h)
+        if not (isinstance(at_least, int) and at_least == 1):
+            counts = np.maximum(counts, at_least)
+        n = int(counts.max())
+        if n == 1:                                 # (the usual step: whole, no arrays made)
+            if self._whole_h_of != h:
+                self._whole_h[:] = h
+                self._whole_h_of = h
+            self._own_h = self._whole_h
+            self._substep(t - h + h / n, h, self._whole_h)
+        else:
+            if self.params.inter_strip and len(self.pairs):
+                counts[:] = n
+            else:
+                counts = np.left_shift(1, np.ceil(np.log2(counts)).astype(np.int64))
+                n = int(counts.max())
+            own_h = h / counts
+            self._own_h = own_h
+            stride = n // counts
+            strand_h = np.empty_like(own_h)
+            for k in range(n):
+                np.copyto(strand_h, own_h)
+                strand_h[(k + 1) % stride != 0] = 0.0
+                self._substep(t - h + (k + 1) * h / n, h / n, strand_h)
         self.counters['substeps'] += n
-        self._last_substeps = n
-        return n
+        self.counters['strand_substeps'] += int(counts.sum())
+        self._last_substeps = counts
+        return counts
 
-    def _simulated(self, t, h, substeps=1):
+    def _simulated(self, t, h, at_least=1):
         """Run _simulate; return whether the state came out finite."""
         try:
-            self._simulate(t, h, substeps)
+            self._simulate(t, h, at_least)
             # vertices are placed root to tip, so a NaN anywhere reaches the tips
             return math.isfinite(self.pos[:, -1].sum())     # NaN and inf survive a sum
         except (ZeroDivisionError, FloatingPointError, OverflowError):
@@ -532,7 +565,12 @@ class HairSimulator:
         self._constants_of = p
         self._springs_rest3 = self.rest3
 
-    def _substep(self, t, h):
+    def _substep(self, t, h, strand_h):
+        """
+        One substep of length h ending at t: strand i moves by strand_h[i] (0: it waits).
+
+        A fused model (one kernel call for the whole step) takes every strand by h.
+        """
         p = self.params
         c = self.counters
         if self._constants_of is not p or self._springs_rest3 is not self.rest3:
@@ -558,7 +596,7 @@ class HairSimulator:
                                                                     settings)
             c['kernel_calls'] += 1
         else:
-            checks, contacts, walls, segments = self._substep_by_kernel(h, head, bodies,
+            checks, contacts, walls, segments = self._substep_by_kernel(strand_h, head, bodies,
                                                                         settings)
         c['broad_phase_checks'] += checks
         c['contacts'] += contacts
@@ -571,7 +609,7 @@ class HairSimulator:
         c['turn_clamps'] = int(self.stats[F.TURN_CLAMPS])
         self.last_dt = h
 
-    def _substep_by_kernel(self, h, head, bodies, settings):
+    def _substep_by_kernel(self, strand_h, head, bodies, settings):
         """Run the shared force kernels one by one, then the model's step (see _substep)."""
         c = self.counters
         attach = self.attachment
@@ -598,7 +636,8 @@ class HairSimulator:
         self.solver.velocities(self, self.last_dt)
         strands = self.strands
         if self.solver.forces_at_mid_step:      # (Stormer-Verlet: see solvers/articulated)
-            np.multiply(self.vel, 0.5 * h, out=self._pos_mid)
+            # each strand at the middle of its own substep (one waiting: of its next)
+            np.multiply(self.vel, 0.5 * self._own_h[:, None, None], out=self._pos_mid)
             self._pos_mid += self.pos
             strands = strands._replace(pos=self._pos_mid)
         forces = self.forces
@@ -639,7 +678,7 @@ class HairSimulator:
                 forces,
             )
             c['kernel_calls'] += 1
-        segments = self.solver.step(self, h, head)
+        segments = self.solver.step(self, strand_h, head)
         c['kernel_calls'] += 1
         return checks, contacts, walls, segments
 

@@ -713,8 +713,8 @@ def test_random_head_motion_leaves_no_limit_cycle(dt):
     assert record['promised'] and record['slept'] and record['passed'], record
 
 
-def test_substep_count_follows_the_fastest_swing_across_a_rod():
-    """substeps_for: ceil(h |w_perp| / MAX_STEP_ROTATION) of the fastest rod, numpy-checked."""
+def test_substep_count_follows_each_strands_fastest_swing_across_a_rod():
+    """substeps_for: per strand, ceil(h |w_perp| / MAX_STEP_ROTATION) of its fastest rod."""
     from hair_sim.physics.solvers.articulated import MAX_STEP_ROTATION, MAX_SUBSTEPS
     rng = np.random.default_rng(3)
     sim = HairSimulator.from_strands(
@@ -724,17 +724,71 @@ def test_substep_count_follows_the_fastest_swing_across_a_rod():
     solver.R[:] = Rotation.random(solver.R.shape[0] * solver.R.shape[1],
                                   random_state=5).as_matrix().reshape(solver.R.shape)
     for scale in (0.1, 3.0, 40.0, 1e5):
-        solver.omega[:] = scale * rng.normal(size=solver.omega.shape)
+        # strands a thousand times apart in speed
+        solver.omega[:] = scale * rng.normal(size=solver.omega.shape) * \
+            np.array([1.0, 1e-3, 1e-1, 1e-2])[:, None, None]
         d = solver.R[..., :, 2]
         w = solver.omega
-        swing = np.linalg.norm(w - (w * d).sum(-1, keepdims=True) * d, axis=-1).max()
-        want = max(1, min(MAX_SUBSTEPS, int(np.ceil(DEFAULT_DT * swing / MAX_STEP_ROTATION))))
-        assert solver.substeps_for(DEFAULT_DT) == want
+        swing = np.linalg.norm(w - (w * d).sum(-1, keepdims=True) * d, axis=-1).max(axis=1)
+        want = [max(1, min(MAX_SUBSTEPS, int(np.ceil(DEFAULT_DT * swing[s]
+                                                     / MAX_STEP_ROTATION)))) for s in range(4)]
+        assert list(solver.substeps_for(DEFAULT_DT)) == want, scale
     # spin about a rod moves nothing and takes no substeps
     solver.omega[:] = 1e4 * d
-    assert solver.substeps_for(DEFAULT_DT) == 1
+    assert (solver.substeps_for(DEFAULT_DT) == 1).all()
     solver.omega[1, 2, 0] = np.nan                 # a diverged state: the caller reports it
-    assert solver.substeps_for(DEFAULT_DT) == 1
+    assert (solver.substeps_for(DEFAULT_DT) == 1).all()
+
+
+def _two_strands(inter_strip):
+    """Two strands 30 cm apart, one slow (one substep), one whipping (several)."""
+    rest = np.array([[[0.3 * k, 0.0, 0.5 - 0.03 * j] for j in range(7)] for k in range(2)])
+    sim = HairSimulator.from_strands(rest, load_head(paths.shipped_head('default_adult')),
+                                     pairs=[[0, 1]], model='articulated',
+                                     inter_strip=inter_strip)
+    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+    sim.step(DEFAULT_DT)
+    sim.solver.omega[0] = 0.01
+    sim.solver.omega[1, :, 0] = 40.0
+    return sim
+
+
+def test_each_strand_moves_at_its_own_rate_as_if_alone():
+    """
+    Multirate: strands with no springs between them each move as they would alone.
+
+    A strand taking 1 substep beside one taking many moves exactly as it does when both
+    take 1, and the whipping one exactly as when both take its count (rounded up to a power
+    of two); all start from the same state.
+    """
+    mixed, slow, fast = (_two_strands(False) for _ in range(3))
+    need = mixed.solver.substeps_for(DEFAULT_DT)
+    assert need[0] == 1 and need[1] > 2
+    n = 1 << int(np.ceil(np.log2(need[1])))
+    slow.solver.substeps_for = lambda h: np.array([1, 1])
+    fast.solver.substeps_for = lambda h: np.array([n, n])
+    for sim in (mixed, slow, fast):
+        sim.step(DEFAULT_DT)
+    assert mixed.counters['substeps'] == 1 + n
+    assert mixed.counters['strand_substeps'] == 2 + 1 + n
+    assert np.array_equal(mixed.pos[0], slow.pos[0])
+    assert np.array_equal(mixed.solver.omega[0], slow.solver.omega[0])
+    assert np.array_equal(mixed.pos[1], fast.pos[1])
+    assert np.array_equal(mixed.solver.omega[1], fast.solver.omega[1])
+    assert not np.array_equal(mixed.pos[0], fast.pos[0])
+
+
+def test_strands_joined_by_springs_share_the_finest_count():
+    """With inter-strip springs both strands take the whipping one's count, not rounded."""
+    joined, twin = _two_strands(True), _two_strands(True)
+    need = joined.solver.substeps_for(DEFAULT_DT)
+    assert need[0] == 1 and need[1] > 2
+    n = int(need[1])
+    twin.solver.substeps_for = lambda h: np.array([n, n])
+    for sim in (joined, twin):
+        sim.step(DEFAULT_DT)
+    assert joined.counters['strand_substeps'] == 2 + 2 * n
+    assert np.array_equal(joined.pos, twin.pos)
 
 
 def test_a_step_that_blows_up_is_taken_again_from_where_it_started():
@@ -769,8 +823,9 @@ def test_a_step_that_blows_up_is_taken_again_from_where_it_started():
         return out
 
     spoiled.solver.step = spoil_first
-    n = twin.solver.substeps_for(h)
-    twin.solver.substeps_for = lambda hh: RETRY_SUBSTEP_FACTOR * n
+    counts = twin.solver.substeps_for(h).copy()
+    n = int(counts.max())
+    twin.solver.substeps_for = lambda hh: RETRY_SUBSTEP_FACTOR * counts
     t += h
     for sim in sims:
         sim.set_head_pose(t, *violent(t))

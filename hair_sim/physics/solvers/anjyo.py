@@ -724,6 +724,7 @@ class AnjyoSolver:
         self.chart = np.zeros((n_s, n_seg, 3, 3))
         self.packed = np.zeros(PACK_FIELDS * BLOCK)      # integrate_strands' scratch
         self.turned = np.zeros(TURN_FIELDS * BLOCK)
+        self._whole = np.ones(n_s, dtype=np.int64)     # substeps_for: one per strand
         self.update_material(sim)
 
     def update_material(self, sim):
@@ -792,11 +793,16 @@ class AnjyoSolver:
         )
 
     def substeps_for(self, h):
-        """Return 1: the model takes every step whole (MAX_TURN clamps a step's turn)."""
-        return 1
+        """Return 1 for every strand: the model takes every step whole (MAX_TURN clamps)."""
+        return self._whole
 
-    def step(self, sim, h, head):
-        """Advance eqs. 1-6 by h with the forces in sim.forces; return segments updated."""
+    def step(self, sim, strand_h, head):
+        """
+        Advance eqs. 1-6 with the forces in sim.forces; return segments updated.
+
+        strand_h is each strand's step; this model takes every step whole, so they are one
+        h (substeps_for is 1 for every strand).
+        """
         p = sim.params
         return integrate_strands(
             self.state(),
@@ -807,7 +813,7 @@ class AnjyoSolver:
             sim.bodies,
             p.collisions,
             p.damping,
-            h,
+            float(strand_h[0]),
             EXPLICIT if p.integrator == 'explicit' else IMPLICIT,
             sim.stats,
         )

@@ -286,14 +286,12 @@ def twist_free_chains(R, rest_rel, Rh):
 def joint_rotation(Rp, rest_rel, Ri, out):
     """Write S = rest_rel^T Rp^T Ri: the joint's rotation from its rest (child from parent)."""
     for a in range(3):
+        # column a of Rp rest_rel
+        q0 = Rp[0, 0] * rest_rel[0, a] + Rp[0, 1] * rest_rel[1, a] + Rp[0, 2] * rest_rel[2, a]
+        q1 = Rp[1, 0] * rest_rel[0, a] + Rp[1, 1] * rest_rel[1, a] + Rp[1, 2] * rest_rel[2, a]
+        q2 = Rp[2, 0] * rest_rel[0, a] + Rp[2, 1] * rest_rel[1, a] + Rp[2, 2] * rest_rel[2, a]
         for b in range(3):
-            acc = 0.0
-            for c in range(3):
-                # (Rp rest_rel)[c, a]
-                q = Rp[c, 0] * rest_rel[0, a] + Rp[c, 1] * rest_rel[1, a] + \
-                    Rp[c, 2] * rest_rel[2, a]
-                acc += q * Ri[c, b]
-            out[a, b] = acc
+            out[a, b] = q0 * Ri[0, b] + q1 * Ri[1, b] + q2 * Ri[2, b]
 
 
 @njit_without_refcounts
@@ -729,14 +727,15 @@ def _speculative_contacts(s,
 
 
 @njit_without_refcounts
-def fastest_swing(R, omega):
+def strand_swings(R, omega, out):
     """
-    Return the fastest swing (rad/s) of any rod: its angular velocity across its axis.
+    Write each strand's fastest swing (rad/s) into out.
 
-    Spin about a rod moves nothing. A NaN anywhere is returned as NaN (a diverged state).
+    A swing is a rod's angular velocity across its axis; the strand's is its fastest rod's.
+    Spin about a rod moves nothing. A strand with a NaN anywhere gets NaN (a diverged state).
     """
-    top = 0.0
     for s in range(R.shape[0]):
+        top = 0.0
         for i in range(R.shape[1]):
             dx, dy, dz = R[s, i, 0, 2], R[s, i, 1, 2], R[s, i, 2, 2]
             wx, wy, wz = omega[s, i, 0], omega[s, i, 1], omega[s, i, 2]
@@ -744,10 +743,11 @@ def fastest_swing(R, omega):
             sx, sy, sz = wx - wd * dx, wy - wd * dy, wz - wd * dz
             sw = sx * sx + sy * sy + sz * sz
             if sw != sw:
-                return np.nan
+                top = np.nan
+                break
             if sw > top:
                 top = sw
-    return sqrt(top)
+        out[s] = sqrt(top)
 
 
 @njit_without_refcounts
@@ -760,11 +760,13 @@ def step_chains(state,
                 root_acc,
                 bodies,
                 collide,
-                h,
+                strand_h,
                 stats,
                 scratch):
     """
-    Advance every strand's chain by h (articulated-body algorithm, see the module text).
+    Advance each strand's chain by its own step strand_h (articulated-body algorithm).
+
+    See the module text; a strand whose strand_h is 0 waits (the simulator's multirate).
 
     Reads the shared per-segment forces (world), the head's motion (base of every chain),
     writes the new orientations, angular velocities, vertices and vertex velocities. The
@@ -793,7 +795,12 @@ def step_chains(state,
     max_rate = 0.0
     guards = 0
     Rh = head.R
+    updated = 0
     for s in range(n_s):
+        h = strand_h[s]
+        if h <= 0.0:
+            continue
+        updated += n_seg
         # ---------------- part of the drift: the configuration at mid-step (Stormer-Verlet).
         # A joint too stiff for the step (b = h^2 k / I >> 1) takes its force at the start
         # instead (symplectic Euler), and its mid-step velocity prediction fades likewise.
@@ -1131,7 +1138,7 @@ def step_chains(state,
                                 vel)
     stats[MAX_RATE] = max_rate
     stats[GUARD_MOVES] += guards
-    return n_s * n_seg
+    return updated
 
 
 # ------------------------------------------------------------------ set-up (numpy, once)
@@ -1378,6 +1385,7 @@ class ArticulatedSolver:
                                   self.modeled[:, :-1]], axis=1)
         self.rest_rel = np.ascontiguousarray(np.swapaxes(parents, -1, -2) @ self.modeled)
         self.scratch = chain_scratch(n_seg)
+        self._swings = np.zeros(n_s)              # substeps_for's per-strand fastest swing
         self.update_material(sim)
 
     def update_material(self, sim):
@@ -1455,18 +1463,24 @@ class ArticulatedSolver:
 
     def substeps_for(self, h):
         """
-        Return how many substeps a step of h needs (the simulator recomputes the forces).
+        Return how many substeps of a step of h each strand needs (n_strands,).
 
         A (sub)step turns no segment by more than MAX_STEP_ROTATION, so a whipping tip
-        (tens of rad/s) costs a few substeps instead of stability.
+        (tens of rad/s) costs a few substeps instead of stability. The simulator decides
+        whether the strands share the largest count or each takes its own.
         """
-        fastest = fastest_swing(self.R, self.omega)
-        if not np.isfinite(fastest):
-            return 1                        # a diverged state: the simulator's check reports it
-        return max(1, min(MAX_SUBSTEPS, int(np.ceil(h * fastest / MAX_STEP_ROTATION))))
+        strand_swings(self.R, self.omega, self._swings)
+        need = np.ceil(h * self._swings / MAX_STEP_ROTATION)
+        # (a diverged strand, NaN, takes 1: the simulator's check reports it)
+        return np.where(np.isfinite(need), np.clip(need, 1.0, MAX_SUBSTEPS),
+                        1.0).astype(np.int64)
 
-    def step(self, sim, h, head):
-        """Advance every chain by h with the forces in sim.forces; return segments updated."""
+    def step(self, sim, strand_h, head):
+        """
+        Advance each chain by its strand_h (0: it waits) with the forces in sim.forces.
+
+        Returns the segments updated.
+        """
         return step_chains(
             self.state(),
             sim.strands,
@@ -1477,7 +1491,7 @@ class ArticulatedSolver:
             sim.root_acc,
             sim.bodies,
             sim.params.collisions,
-            h,
+            strand_h,
             sim.stats,
             self.scratch,
         )
