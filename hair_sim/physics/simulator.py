@@ -482,7 +482,8 @@ class HairSimulator:
         of two (multirate): the step runs as many substeps as the finest strand takes,
         and each strand moves at the substeps where one of its own ends, by its own
         length (waiting at the others), so a strand at rest beside a whipping one takes
-        the step whole, exactly as it would alone. Returns each strand's count.
+        the step whole, exactly as it would alone (strands that all need the same count
+        take it as it is). Returns each strand's count.
         """
         counts = self.solver.substeps_for(h)
         if not (isinstance(at_least, int) and at_least == 1):
@@ -495,7 +496,7 @@ class HairSimulator:
             self._own_h = self._whole_h
             self._substep(t - h + h / n, h, self._whole_h)
         else:
-            if self.params.inter_strip and len(self.pairs):
+            if counts.min() == n or (self.params.inter_strip and len(self.pairs)):
                 counts[:] = n
             else:
                 counts = np.left_shift(1, np.ceil(np.log2(counts)).astype(np.int64))

@@ -778,6 +778,17 @@ def test_each_strand_moves_at_its_own_rate_as_if_alone():
     assert not np.array_equal(mixed.pos[0], fast.pos[0])
 
 
+def test_strands_that_need_the_same_count_take_it_unrounded():
+    """Without springs, strands all needing n substeps take n (a power of two or not)."""
+    sim = _two_strands(False)
+    sim.solver.omega[:] = 0.0
+    sim.solver.omega[:, :, 0] = 50.0                 # 1/240 s x 50 rad/s / 0.05 rad: 5
+    need = sim.solver.substeps_for(DEFAULT_DT)
+    assert need[0] == need[1] > 2 and need[0] & (need[0] - 1) != 0     # not a power of 2
+    sim.step(DEFAULT_DT)
+    assert sim.counters['strand_substeps'] == 2 + 2 * need[0]
+
+
 def test_strands_joined_by_springs_share_the_finest_count():
     """With inter-strip springs both strands take the whipping one's count, not rounded."""
     joined, twin = _two_strands(True), _two_strands(True)
