@@ -437,12 +437,25 @@ class HairSimulator:
             return False
         saved = self._saved() if self.solver.retries_diverged_steps else None
         finite = self._simulated(t, h)
-        if not finite and saved is not None:
+        if saved is not None:
             # a contact or a whip the substep count did not foresee: take the step again
-            # from the saved state with RETRY_SUBSTEP_FACTOR times the substeps
-            self._restore(saved)
-            self.counters['retried_steps'] += 1
-            finite = self._simulated(t, h, RETRY_SUBSTEP_FACTOR * self._last_substeps)
+            # from the saved state, every strand at the finest count: RETRY_SUBSTEP_FACTOR
+            # times it when the state came out non-finite; as it is when strands took
+            # their own counts and one ended the step swinging OUTRAN_FACTOR times faster
+            # than its count allows (a blow-up that has not reached inf yet: in the stress
+            # bench's gale without inter-strip springs, a strand taking 32 substeps where
+            # the finest took 256 reached 590 m/s, then NaN)
+            counts = self._last_substeps
+            finest = int(np.max(counts))
+            again = None
+            if not finite:
+                again = RETRY_SUBSTEP_FACTOR * finest
+            elif np.min(counts) < finest and self.solver.outran(h, counts).any():
+                again = finest
+            if again is not None:
+                self._restore(saved)
+                self.counters['retried_steps'] += 1
+                finite = self._simulated(t, h, again, shared=True)
         if not finite:
             self.counters['diverged'] += 1
             self.reset()
@@ -468,7 +481,7 @@ class HairSimulator:
         self.last_step_time = _time.perf_counter() - t0
         return True
 
-    def _simulate(self, t, h, at_least=1):
+    def _simulate(self, t, h, at_least=1, shared=False):
         """
         One awake step: the shared forces (eqs. 5, 7-11), then the strand model.
 
@@ -483,7 +496,8 @@ class HairSimulator:
         and each strand moves at the substeps where one of its own ends, by its own
         length (waiting at the others), so a strand at rest beside a whipping one takes
         the step whole, exactly as it would alone (strands that all need the same count
-        take it as it is). Returns each strand's count.
+        take it as it is; `shared` makes every strand take the largest). Returns each
+        strand's count.
         """
         counts = self.solver.substeps_for(h)
         if not (isinstance(at_least, int) and at_least == 1):
@@ -496,7 +510,7 @@ class HairSimulator:
             self._own_h = self._whole_h
             self._substep(t - h + h / n, h, self._whole_h)
         else:
-            if counts.min() == n or (self.params.inter_strip and len(self.pairs)):
+            if shared or counts.min() == n or (self.params.inter_strip and len(self.pairs)):
                 counts[:] = n
             else:
                 counts = np.left_shift(1, np.ceil(np.log2(counts)).astype(np.int64))
@@ -514,10 +528,10 @@ class HairSimulator:
         self._last_substeps = counts
         return counts
 
-    def _simulated(self, t, h, at_least=1):
+    def _simulated(self, t, h, at_least=1, shared=False):
         """Run _simulate; return whether the state came out finite."""
         try:
-            self._simulate(t, h, at_least)
+            self._simulate(t, h, at_least, shared)
             # vertices are placed root to tip, so a NaN anywhere reaches the tips
             return math.isfinite(self.pos[:, -1].sum())     # NaN and inf survive a sum
         except (ZeroDivisionError, FloatingPointError, OverflowError):

@@ -778,6 +778,39 @@ def test_each_strand_moves_at_its_own_rate_as_if_alone():
     assert not np.array_equal(mixed.pos[0], fast.pos[0])
 
 
+def test_a_strand_that_outran_its_substeps_has_the_step_taken_again_shared():
+    """
+    A finite blow-up in a multirate step: the step is taken again, every strand finest.
+
+    After the step's last substep the slow strand (1 substep) is flung to 1e4 rad/s, far
+    more than OUTRAN_FACTOR times what its count allows; the simulator must restore the
+    step's state and take it again with every strand at the whipping one's count, which
+    must give exactly what a twin gets taking that shared count in the first place.
+    """
+    spoiled, twin = _two_strands(False), _two_strands(False)
+    need = spoiled.solver.substeps_for(DEFAULT_DT)
+    n = 1 << int(np.ceil(np.log2(need[1])))
+    real_step = spoiled.solver.step
+    calls = []
+
+    def fling_at_the_end(sim, strand_h, head):
+        out = real_step(sim, strand_h, head)
+        calls.append(strand_h.copy())
+        if len(calls) == n:                        # the first try's last substep
+            spoiled.solver.omega[0, :, 0] = 1e4
+        return out
+
+    spoiled.solver.step = fling_at_the_end
+    twin.solver.substeps_for = lambda h: np.array([n, n])
+    for sim in (spoiled, twin):
+        sim.step(DEFAULT_DT)
+    assert spoiled.counters['retried_steps'] == 1
+    assert len(calls) == 2 * n and (calls[0][0] == 0.0) and (calls[-1] > 0.0).all()
+    assert np.array_equal(spoiled.pos, twin.pos)
+    for a, b in zip(spoiled.solver.step_state(), twin.solver.step_state()):
+        assert np.array_equal(a, b)
+
+
 def test_strands_that_need_the_same_count_take_it_unrounded():
     """Without springs, strands all needing n substeps take n (a power of two or not)."""
     sim = _two_strands(False)

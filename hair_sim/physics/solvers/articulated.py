@@ -107,6 +107,9 @@ MAX_STEP_ROTATION = 0.05
 # at most this many substeps per step: at 64, violent head motion at one step per 60 Hz
 # frame (tips near 300 rad/s) ran out of substeps and bob_fringe diverged twice in 3 s
 MAX_SUBSTEPS = 256
+# a strand that ends a step needing more than this many times the substeps it took has
+# outrun its count (`outran`): the simulator takes a multirate step again, shared
+OUTRAN_FACTOR = 16
 # rad of spring deflection a joint may need to hold its style (sag-free offsets); beyond it
 # the joint is stiffened: measured, offsets past ~1 rad (up to 7.9 on the long styles,
 # past pi the log coordinates wrap) made the hair boil under calm head motion
@@ -1474,6 +1477,17 @@ class ArticulatedSolver:
         # (a diverged strand, NaN, takes 1: the simulator's check reports it)
         return np.where(np.isfinite(need), np.clip(need, 1.0, MAX_SUBSTEPS),
                         1.0).astype(np.int64)
+
+    def outran(self, h, counts):
+        """
+        Return which strands outran the substeps they took in a step of h (n_strands,).
+
+        A strand outran them when its swing at the end of the step needs more than
+        OUTRAN_FACTOR times as many (each count is set from the swing where the step
+        starts); a NaN strand has outrun them too.
+        """
+        strand_swings(self.R, self.omega, self._swings)
+        return ~(h * self._swings <= OUTRAN_FACTOR * MAX_STEP_ROTATION * counts)
 
     def step(self, sim, strand_h, head):
         """
