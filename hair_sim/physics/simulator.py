@@ -488,11 +488,14 @@ class HairSimulator:
         A model may ask for the step to be split per strand (the articulated chain does
         where a segment would turn too far in one step), into at least `at_least`
         substeps (an int or one per strand); every substep recomputes the forces.
-        Strands joined by inter-strip springs share the largest count: stepped at their
-        own rates, a strand the gale flung 40 cm in one coarse step stretched the springs
-        of a neighbour taking fine ones, and the stress bench's gale diverged. Strands on
-        their own (no springs between them) each take their count rounded up to a power
-        of two (multirate): the step runs as many substeps as the finest strand takes,
+        When inter-strip springs join strands (every shipped style), every strand takes
+        the largest count, as before multirate: giving each group of joined strands its
+        own (tried) left the stress bench's articulated gale as it was but made its random
+        motion end with strands balanced that fell during the 4 s sleep window, at 1/1000
+        and 1/60 s (the hold itself took 1 substep a strand: the trajectory changed, not
+        the stability). Strands on their own (no springs) each take their count rounded
+        up to a power of two (multirate): the step runs as many substeps as the finest
+        strand takes,
         and each strand moves at the substeps where one of its own ends, by its own
         length (waiting at the others), so a strand at rest beside a whipping one takes
         the step whole, exactly as it would alone (strands that all need the same count
