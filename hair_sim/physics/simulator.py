@@ -495,12 +495,11 @@ class HairSimulator:
         and 1/60 s (the hold itself took 1 substep a strand: the trajectory changed, not
         the stability). Strands on their own (no springs) each take their count rounded
         up to a power of two (multirate): the step runs as many substeps as the finest
-        strand takes,
-        and each strand moves at the substeps where one of its own ends, by its own
-        length (waiting at the others), so a strand at rest beside a whipping one takes
-        the step whole, exactly as it would alone (strands that all need the same count
-        take it as it is; `shared` makes every strand take the largest). Returns each
-        strand's count.
+        strand takes, and each strand moves at the substeps where one of its own ends, by
+        its own length (waiting at the others), so a strand at rest beside a whipping one
+        takes the step whole, exactly as it would alone (strands that all need the same
+        count take it as it is; `shared` makes every strand take the largest). Returns
+        each strand's count.
         """
         counts = self.solver.substeps_for(h)
         if not (isinstance(at_least, int) and at_least == 1):
