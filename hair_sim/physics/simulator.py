@@ -170,8 +170,6 @@ class HairSimulator:
         self.root_acc = np.zeros((n_s, 3))
         self._proj = np.zeros((n_s, n_seg + 1, 3))
         self._pos_mid = np.zeros((n_s, n_seg + 1, 3))     # where a model takes its forces
-        self._whole_h = np.zeros(n_s)          # every strand's step when none is split
-        self._whole_h_of = None                # the step _whole_h holds
         self._snapshot = None                               # _saved()'s buffers
         self._spheres = np.zeros_like(self.spheres_head)
         self._sphere_vel = np.zeros((len(self.spheres_head), 3))
@@ -487,7 +485,7 @@ class HairSimulator:
 
         A model may ask for the step to be split per strand (the articulated chain does
         where a segment would turn too far in one step), into at least `at_least`
-        substeps (an int or one per strand); every substep recomputes the forces.
+        substeps; every substep recomputes the forces.
         When inter-strip springs join strands (every shipped style), every strand takes
         the largest count, as before multirate: giving each group of joined strands its
         own (tried) left the stress bench's articulated gale as it was but made its random
@@ -502,15 +500,12 @@ class HairSimulator:
         each strand's count.
         """
         counts = self.solver.substeps_for(h)
-        if not (isinstance(at_least, int) and at_least == 1):
+        if at_least > 1:
             counts = np.maximum(counts, at_least)
         n = int(counts.max())
-        if n == 1:                                 # (the usual step: whole, no arrays made)
-            if self._whole_h_of != h:
-                self._whole_h[:] = h
-                self._whole_h_of = h
-            self._own_h = self._whole_h
-            self._substep(t - h + h / n, h, self._whole_h)
+        if n == 1:                                 # (the usual step: whole)
+            whole = np.full(len(counts), h)
+            self._substep(t - h + h / n, h, whole, whole)
         else:
             if shared or counts.min() == n or (self.params.inter_strip and len(self.pairs)):
                 counts[:] = n
@@ -518,13 +513,12 @@ class HairSimulator:
                 counts = np.left_shift(1, np.ceil(np.log2(counts)).astype(np.int64))
                 n = int(counts.max())
             own_h = h / counts
-            self._own_h = own_h
             stride = n // counts
             strand_h = np.empty_like(own_h)
             for k in range(n):
                 np.copyto(strand_h, own_h)
                 strand_h[(k + 1) % stride != 0] = 0.0
-                self._substep(t - h + (k + 1) * h / n, h / n, strand_h)
+                self._substep(t - h + (k + 1) * h / n, h / n, strand_h, own_h)
         self.counters['substeps'] += n
         self.counters['strand_substeps'] += int(counts.sum())
         self._last_substeps = counts
@@ -582,11 +576,12 @@ class HairSimulator:
         self._constants_of = p
         self._springs_rest3 = self.rest3
 
-    def _substep(self, t, h, strand_h):
+    def _substep(self, t, h, strand_h, own_h):
         """
         One substep of length h ending at t: strand i moves by strand_h[i] (0: it waits).
 
-        A fused model (one kernel call for the whole step) takes every strand by h.
+        own_h[i] is strand i's own substep, the one it is in (forces at its middle). A
+        fused model (one kernel call for the whole step) takes every strand by h.
         """
         p = self.params
         c = self.counters
@@ -613,8 +608,8 @@ class HairSimulator:
                                                                     settings)
             c['kernel_calls'] += 1
         else:
-            checks, contacts, walls, segments = self._substep_by_kernel(strand_h, head, bodies,
-                                                                        settings)
+            checks, contacts, walls, segments = self._substep_by_kernel(strand_h, own_h, head,
+                                                                        bodies, settings)
         c['broad_phase_checks'] += checks
         c['contacts'] += contacts
         c['wall_springs'] += walls
@@ -626,7 +621,7 @@ class HairSimulator:
         c['turn_clamps'] = int(self.stats[F.TURN_CLAMPS])
         self.last_dt = h
 
-    def _substep_by_kernel(self, strand_h, head, bodies, settings):
+    def _substep_by_kernel(self, strand_h, own_h, head, bodies, settings):
         """Run the shared force kernels one by one, then the model's step (see _substep)."""
         c = self.counters
         attach = self.attachment
@@ -654,7 +649,7 @@ class HairSimulator:
         strands = self.strands
         if self.solver.forces_at_mid_step:      # (Stormer-Verlet: see solvers/articulated)
             # each strand at the middle of its own substep (one waiting: of its next)
-            np.multiply(self.vel, 0.5 * self._own_h[:, None, None], out=self._pos_mid)
+            np.multiply(self.vel, 0.5 * own_h[:, None, None], out=self._pos_mid)
             self._pos_mid += self.pos
             strands = strands._replace(pos=self._pos_mid)
         forces = self.forces
