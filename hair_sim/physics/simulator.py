@@ -508,7 +508,7 @@ class HairSimulator:
             self._substep(t - h + h / n, h, whole, whole)
         else:
             if shared or counts.min() == n or (self.params.inter_strip and len(self.pairs)):
-                counts[:] = n
+                counts = np.full_like(counts, n)
             else:
                 counts = np.left_shift(1, np.ceil(np.log2(counts)).astype(np.int64))
                 n = int(counts.max())
