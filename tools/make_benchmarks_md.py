@@ -136,24 +136,35 @@ def head_fit_section(fit):
 
 
 def hanging_section(rows):
-    """Return the lines of the hanging-hair section (both models against MuJoCo)."""
+    """Return the lines of the hanging-hair section (both models, MuJoCo, PyElastica)."""
     for r in rows:
         r['step'] = '1/%d' % round(1 / r['dt'])
         r['size'] = '%d x %d' % (r['strands'], r['segments'])
     accuracy = [r for r in rows if not r.get('speed_only')]
     speed = [r for r in rows if r.get('speed_only')]
-    return ['## Hanging hair against MuJoCo (`hair_sim_bench hanging --json`)', '',
+    return ['## Hanging hair against MuJoCo and PyElastica (`hair_sim_bench hanging --json`)',
+            '',
             'The scene of issue 11 (`hair_sim/bench/hanging.py`): strands rooted on a head '
-            'sphere, straight out along the normal at t = 0, falling for 2 s; MuJoCo 4 '
+            'sphere, straight out along the normal at t = 0, falling for 2 s. MuJoCo 4 '
             '(capsules on ball joints, stiffness EI / ds, the first welded, implicitfast) '
-            'at 1/4000 s is the reference (its chain is unstable at 1/2000 s here). Cost is '
-            'wall seconds per simulated second, one core, stepping only.', '',
+            'at 1/4000 s (1/16000 s with 20 segments; its chain is unstable at twice '
+            'these) is the reference. PyElastica 1.0 is a second one of another kind: a '
+            'Cosserat rod (a continuum that also stretches, shears and twists; masses at '
+            'the nodes) with the same EI and mass per metre, its first node and element '
+            'fixed, the air damping as its uniform velocity decay, explicit Position Verlet'
+            ' at 2e-5 s (1e-5 s with 20 segments), and the head as a frictionless penalty '
+            'on the nodes (10 N/m; the rod radius, 1 mm, sets only its stretch and shear '
+            'stiffness and rotary inertia). Cost is wall seconds per simulated second, one '
+            'core, stepping only.', '',
             table(accuracy, [('solver', 'solver'), ('size', 'strands x segments'),
                              ('step', 'dt (s)'), ('stable', 'stable'),
                              ('wall_s_per_sim_s', 'cost'),
                              ('mean_tip_z', 'mean tip z (m)'),
                              ('tip_rms_vs_mujoco_m', 'tip RMS vs MuJoCo (m)'),
-                             ('tip_median_vs_mujoco_m', 'median tip error (m)')]), '',
+                             ('tip_median_vs_mujoco_m', 'median vs MuJoCo (m)'),
+                             ('tip_rms_vs_pyelastica_m', 'tip RMS vs PyElastica (m)'),
+                             ('tip_median_vs_pyelastica_m', 'median vs PyElastica (m)')]),
+            '',
             'Speed only (no reference run at this size):', '',
             table(speed, [('solver', 'solver'), ('size', 'strands x segments'),
                           ('step', 'dt (s)'), ('wall_s_per_sim_s', 'cost')]), '',

@@ -1,5 +1,5 @@
 """
-The hanging-hair scene, in hair_sim and in MuJoCo, and what they say about each other.
+The hanging-hair scene, in hair_sim, MuJoCo and PyElastica, and what they say of each other.
 
 Scene: a rigid head sphere, R = 0.1 m, at the origin. N strands with roots on a Fibonacci
 lattice over the upper hemisphere (z_i = 1 - (i + 0.5) / N, azimuth i pi (3 - sqrt 5)),
@@ -8,16 +8,26 @@ t = 0; length 0.3 m in S equal segments; lambda = 1e-4 kg/m, EI = 1e-7 N m^2; th
 segment clamped. Air damping 5/s, gravity 9.81 m/s^2 along -z, frictionless head contact,
 no hair-hair contact. Simulated for 2 s.
 
-MuJoCo (a benchmark-only dependency: `make bench-deps`): one body per segment, a capsule
-of the segment's length and mass (rod inertia), ball joints with stiffness EI / ds at the
-segment starts, the first segment welded to the head, the implicit integrator, condim-1
-(frictionless) contacts with the head sphere only, and the air damping applied as a force
--nu m v at every segment's centre each step.
+MuJoCo, the reference: one body per segment, a capsule of the segment's length and mass
+(rod inertia), ball joints with stiffness EI / ds at the segment starts, the first segment
+welded to the head, the implicit integrator, condim-1 (frictionless) contacts with the
+head sphere only, and the air damping applied as a force -nu m v at every segment's centre
+each step.
+
+PyElastica, a second reference of another kind: a Cosserat rod (a continuum that bends,
+twists, stretches and shears; S elements, masses at the nodes) with the same EI and mass
+per metre, its first node and element fixed, gravity, the air damping as a decay of every
+velocity at nu (its AnalyticalLinearDamper), explicit Position Verlet, and the head as a
+frictionless penalty contact on the nodes (head_contact_forces).
+
+Both are benchmark-only dependencies (requirements.txt installs them; nothing at run time
+imports them). Without one, its rows are left out.
 """
 
 import math
 import time
 
+from numba import njit
 import numpy as np
 
 from hair_sim.modeling.head import HeadModel
@@ -160,6 +170,7 @@ def rms(a, b):
 
 
 def _unstable(tips):
+    """Return True if the tips are missing, not finite or flung away (a diverged run)."""
     return tips is None or not np.all(np.isfinite(tips)) or np.abs(tips).max() > 10.0
 
 
@@ -167,38 +178,159 @@ def _unstable(tips):
 # (50 x 10 at 1/2000 s, 50 x 20 at 1/8000 s: NaN warnings and a reset in MuJoCo)
 REFERENCE_DT = {10: 1 / 4000, 20: 1 / 16000}
 
+# PyElastica's step per size (explicit: under the rod's fastest mode). Halving it moved
+# the tips of 50 x 10 by 0.08 mm RMS (median 0.5 um; 0.47 mm the most, the strand
+# balanced on the top).
+PYELASTICA_DT = {10: 2e-5, 20: 1e-5}
+# The rod's radius sets only what the scene leaves open: how stiffly it stretches and
+# shears (E pi r^2 and G pi r^2, with E from EI = E pi r^4 / 4 and G = E / 3) and its
+# elements' rotary inertia (lambda r^2 / 4 per metre). At the fibre's 0.1 mm the shear
+# mode, omega^2 = 16 EI / (3 lambda r^4), wants steps under 1e-6 s; at 1 mm it is 7e4
+# rad/s, the strand stretches 0.07 % under its own weight and the rotary inertia is 0.3 %
+# (10 segments) to 1.3 % (20) of a segment's m ds^2 / 12. At 0.5 mm (and 4e-6 s) the
+# tips of 50 x 10 moved 0.26 mm RMS (median 0.12 mm).
+PYELASTICA_ROD_RADIUS = 1e-3
+# The head as a penalty on the rod's nodes (frictionless, as the scene says): 10 N/m holds
+# a whole strand's weight 0.3 mm deep, and is far under the step's limit.
+HEAD_CONTACT_K = 10.0          # N/m
+HEAD_CONTACT_C = 1e-3          # N s/m, on the inward normal velocity only
+
+
+@njit(cache=True)
+def head_contact_forces(x, v, forces, radius, k, c):
+    """
+    Add the head's frictionless penalty force to every node but the root (PyElastica).
+
+    x, v and forces are a rod's (3, nodes) positions, velocities and external forces; a
+    node inside the sphere of `radius` at the origin is pushed out along the normal by
+    k times its depth, plus c times its inward normal speed.
+    """
+    for i in range(1, x.shape[1]):
+        d = math.sqrt(x[0, i] * x[0, i] + x[1, i] * x[1, i] + x[2, i] * x[2, i])
+        depth = radius - d
+        if depth <= 0.0:
+            continue
+        nx, ny, nz = x[0, i] / d, x[1, i] / d, x[2, i] / d
+        vn = v[0, i] * nx + v[1, i] * ny + v[2, i] * nz
+        f = k * depth - c * min(vn, 0.0)
+        forces[0, i] += f * nx
+        forces[1, i] += f * ny
+        forces[2, i] += f * nz
+
+
+def run_pyelastica(n_strands, n_segments, dt, duration=DURATION):
+    """Run the scene in PyElastica; return (tips at the end (N, 3), wall s per simulated s)."""
+    import contextlib
+    import logging
+    import sys
+
+    import elastica as ea
+
+    class HeadContact(ea.NoForces):
+        """The head sphere at the origin, as head_contact_forces."""
+
+        def apply_forces(self, system, time=0.0):
+            head_contact_forces(system.position_collection, system.velocity_collection,
+                                system.external_forces, RADIUS, HEAD_CONTACT_K,
+                                HEAD_CONTACT_C)
+
+    class Scene(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping):
+        """The strands and what acts on them."""
+
+    roots, normals = roots_and_normals(n_strands)
+    r = PYELASTICA_ROD_RADIUS
+    youngs = 4.0 * BENDING_STIFFNESS / (math.pi * r ** 4)
+    scene = Scene()
+    rods = []
+    quiet = logging.getLogger().level
+    logging.getLogger().setLevel(logging.ERROR)       # "inertia smaller than tolerance"
+    try:
+        for s in range(n_strands):
+            normal = normals[s]
+            side = np.cross(normal, [1.0, 0.0, 0.0])
+            if np.linalg.norm(side) < 1e-6:
+                side = np.cross(normal, [0.0, 1.0, 0.0])
+            rod = ea.CosseratRod.straight_rod(
+                n_segments, roots[s], normal, side / np.linalg.norm(side), LENGTH, r,
+                LINEAR_DENSITY / (math.pi * r * r), youngs_modulus=youngs,
+                shear_modulus=youngs / 3.0)
+            scene.append(rod)
+            scene.constrain(rod).using(ea.OneEndFixedBC, constrained_position_idx=(0,),
+                                       constrained_director_idx=(0,))
+            scene.add_forcing_to(rod).using(ea.GravityForces,
+                                            acc_gravity=np.array([0.0, 0.0, -GRAVITY]))
+            scene.add_forcing_to(rod).using(HeadContact)
+            scene.dampen(rod).using(ea.AnalyticalLinearDamper,
+                                    uniform_damping_constant=AIR_DAMPING, time_step=dt)
+            rods.append(rod)
+        scene.finalize()
+    finally:
+        logging.getLogger().setLevel(quiet)
+    steps = int(round(duration / dt))
+    t0 = time.perf_counter()
+    with contextlib.redirect_stdout(sys.stderr):      # it prints its final time
+        ea.integrate(ea.PositionVerlet(), scene, steps * dt, steps, progress_bar=False)
+    wall = time.perf_counter() - t0
+    tips = np.array([rod.position_collection[:, -1].copy() for rod in rods])
+    return tips, wall / duration
+
+
+def _have(module):
+    """Return True if a benchmark-only module can be imported."""
+    import importlib.util
+    return importlib.util.find_spec(module) is not None
+
+
+def _errors(tips, ref, name):
+    """Return {tip_rms_vs_<name>_m, tip_median_vs_<name>_m} (None without a reference)."""
+    ok = tips is not None and ref is not None
+    return {'tip_rms_vs_%s_m' % name: rms(tips, ref) if ok else None,
+            # the strands near the top start on an unstable balance: which side they
+            # fall to is chaotic, the median is not
+            'tip_median_vs_%s_m' % name:
+                float(np.median(np.linalg.norm(tips - ref, axis=1))) if ok else None}
+
 
 def run(quick=False, plots=None):
     """
-    Run the hanging-hair scene in both hair_sim models and MuJoCo; return tips and costs.
+    Run the hanging-hair scene in both hair_sim models, MuJoCo and PyElastica.
 
-    The reference is MuJoCo at REFERENCE_DT. Each record gives the tip RMS against it, the
-    mean tip height and wall seconds per simulated second (one core, stepping only). The
-    speed rows step larger scenes: MuJoCo for the first 0.02 s at its reference step (the
-    whole scene would take it hours at 1000 x 20; the strands reach the head, and its
-    contacts, only later), hair_sim at one step per 60 Hz frame for the whole 2 s
-    (the articulated model's cost falls as the strands come to rest: each takes only the
-    substeps it needs).
+    MuJoCo at REFERENCE_DT is the reference, PyElastica at PYELASTICA_DT a second one of
+    another kind; each record gives the tip RMS and median error against both, the mean
+    tip height and wall seconds per simulated second (one core, stepping only). The
+    speed rows step larger scenes: MuJoCo and PyElastica for the first 0.02 s at their
+    reference steps (the whole scene would take them hours at 1000 x 20; the strands
+    reach the head, and its contacts, only later), hair_sim at one step per 60 Hz frame
+    for the whole 2 s (the articulated model's cost falls as the strands come to rest:
+    each takes only the substeps it needs).
     """
     from hair_sim.physics.simulator import SimulationDiverged
     sizes = [(50, 10)] if quick else [(50, 10), (50, 20)]
     dts = [1 / 60, 1 / 240] if quick else [1 / 60, 1 / 120, 1 / 240, 1 / 1000]
-    try:
-        import mujoco  # noqa: F401
-        have_mujoco = True
-    except ImportError:
-        have_mujoco = False
+    have_mujoco, have_pyelastica = _have('mujoco'), _have('elastica')
     records = []
     for n_strands, n_segments in sizes:
-        ref = None
+        size = {'strands': n_strands, 'segments': n_segments}
+        ref = second = None
         if have_mujoco:
             dt = REFERENCE_DT[n_segments]
             tips, cost = run_mujoco(n_strands, n_segments, dt)
             bad = _unstable(tips) or tips[:, 2].mean() > 0.0    # a reset leaves them up
-            records.append({'solver': 'mujoco', 'strands': n_strands, 'segments': n_segments,
-                            'dt': dt, 'stable': not bad, 'wall_s_per_sim_s': cost,
+            records.append({'solver': 'mujoco', **size, 'dt': dt, 'stable': not bad,
+                            'wall_s_per_sim_s': cost,
                             'mean_tip_z': None if bad else float(tips[:, 2].mean())})
             ref = None if bad else tips
+        if have_pyelastica:
+            dt = PYELASTICA_DT[n_segments]
+            tips, cost = run_pyelastica(n_strands, n_segments, dt)
+            bad = _unstable(tips)
+            second = None if bad else tips
+            records.append({'solver': 'pyelastica', **size, 'dt': dt, 'stable': not bad,
+                            'wall_s_per_sim_s': cost,
+                            'mean_tip_z': None if bad else float(tips[:, 2].mean()),
+                            **_errors(second, ref, 'mujoco')})
+            if have_mujoco:                               # the references, each way
+                records[-2].update(_errors(ref, second, 'pyelastica'))
         for model in ('articulated', 'anjyo'):
             for dt in dts:
                 try:
@@ -206,32 +338,33 @@ def run(quick=False, plots=None):
                     bad = _unstable(tips)
                 except SimulationDiverged:
                     tips, cost, bad = None, None, True
-                records.append({'solver': 'hair_sim ' + model, 'strands': n_strands,
-                                'segments': n_segments, 'dt': dt, 'stable': not bad,
-                                'wall_s_per_sim_s': cost,
+                tips = None if bad else tips
+                records.append({'solver': 'hair_sim ' + model, **size, 'dt': dt,
+                                'stable': not bad, 'wall_s_per_sim_s': cost,
                                 'mean_tip_z': None if bad else float(tips[:, 2].mean()),
-                                'tip_rms_vs_mujoco_m': None if bad or ref is None
-                                else rms(tips, ref),
-                                # the strands near the top start on an unstable balance:
-                                # which side they fall to is chaotic, the median is not
-                                'tip_median_vs_mujoco_m': None if bad or ref is None
-                                else float(np.median(np.linalg.norm(tips - ref, axis=1)))})
+                                **_errors(tips, ref, 'mujoco'),
+                                **_errors(tips, second, 'pyelastica')})
     for n_big in ([200] if quick else [200, 1000]):
+        size = {'strands': n_big, 'segments': 20}
         if have_mujoco:
             _, cost = run_mujoco(n_big, 20, REFERENCE_DT[20], duration=0.02)
-            records.append({'solver': 'mujoco', 'strands': n_big, 'segments': 20,
-                            'dt': REFERENCE_DT[20], 'wall_s_per_sim_s': cost,
-                            'speed_only': True})
+            records.append({'solver': 'mujoco', **size, 'dt': REFERENCE_DT[20],
+                            'wall_s_per_sim_s': cost, 'speed_only': True})
+        if have_pyelastica:
+            _, cost = run_pyelastica(n_big, 20, PYELASTICA_DT[20], duration=0.02)
+            records.append({'solver': 'pyelastica', **size, 'dt': PYELASTICA_DT[20],
+                            'wall_s_per_sim_s': cost, 'speed_only': True})
         for model in ('articulated', 'anjyo'):
             _, cost, _ = run_hair_sim(model, n_big, 20, 1 / 60)
-            records.append({'solver': 'hair_sim ' + model, 'strands': n_big, 'segments': 20,
-                            'dt': 1 / 60, 'wall_s_per_sim_s': cost, 'speed_only': True})
+            records.append({'solver': 'hair_sim ' + model, **size, 'dt': 1 / 60,
+                            'wall_s_per_sim_s': cost, 'speed_only': True})
     if plots:
         _plot(records, plots)
     return records
 
 
 def _plot(records, directory):
+    """Plot work against precision on the first size: against MuJoCo, and PyElastica."""
     import os
 
     import matplotlib
@@ -240,25 +373,33 @@ def _plot(records, directory):
 
     from hair_sim.fileio import save_figure
     size = (records[0]['strands'], records[0]['segments'])
-    records = [r for r in records if (r['strands'], r['segments']) == size]
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for solver, marker in (('hair_sim articulated', 'o'), ('hair_sim anjyo', 's')):
-        rs = [r for r in records if r['solver'] == solver and r.get('tip_rms_vs_mujoco_m')]
-        if rs:
-            ax.loglog([r['tip_rms_vs_mujoco_m'] * 1e3 for r in rs],
-                      [r['wall_s_per_sim_s'] for r in rs], marker + '-', label=solver)
+    records = [r for r in records if (r['strands'], r['segments']) == size
+               and not r.get('speed_only')]
+    refs = [('mujoco', 'MuJoCo'), ('pyelastica', 'PyElastica')]
+    refs = [(key, name) for key, name in refs
+            if any(r['solver'] == key and r.get('stable') for r in records)]
+    fig, axes = plt.subplots(1, max(len(refs), 1), figsize=(6 * max(len(refs), 1), 4),
+                             squeeze=False)
+    for ax, (key, name) in zip(axes[0], refs):
+        field = 'tip_rms_vs_%s_m' % key
+        for solver, marker in (('hair_sim articulated', 'o'), ('hair_sim anjyo', 's'),
+                               ('mujoco', 'D'), ('pyelastica', '^')):
+            rs = [r for r in records if r['solver'] == solver and r.get(field)]
+            if not rs:
+                continue
+            ax.loglog([r[field] * 1e3 for r in rs], [r['wall_s_per_sim_s'] for r in rs],
+                      marker + ('-' if len(rs) > 1 else ''), label=solver)
             for r in rs:
-                xy = (r['tip_rms_vs_mujoco_m'] * 1e3, r['wall_s_per_sim_s'])
-                ax.annotate('1/%d' % round(1 / r['dt']), xy, fontsize=7)
-    mj = [r for r in records if r['solver'] == 'mujoco' and r.get('stable')
-          and not r.get('speed_only')]
-    for r in mj:
-        ax.axhline(r['wall_s_per_sim_s'], color='k', ls='--', lw=0.8,
-                   label='MuJoCo at 1/%d (the reference)' % round(1 / r['dt']))
-    ax.axvline(3.0, color='r', ls=':', lw=0.8, label='3 mm')
-    ax.set_xlabel('tip RMS against MuJoCo at 2 s (mm)')
-    ax.set_ylabel('wall s per simulated s (one core)')
-    ax.set_title('hanging hair, %d x %d' % (records[0]['strands'], records[0]['segments']))
-    ax.legend(fontsize=7)
+                ax.annotate('1/%d' % round(1 / r['dt']),
+                            (r[field] * 1e3, r['wall_s_per_sim_s']), fontsize=7)
+        for r in records:
+            if r['solver'] == key and r.get('stable'):
+                ax.axhline(r['wall_s_per_sim_s'], color='k', ls='--', lw=0.8,
+                           label='%s at 1/%d (the reference)' % (name, round(1 / r['dt'])))
+        ax.axvline(3.0, color='r', ls=':', lw=0.8, label='3 mm')
+        ax.set_xlabel('tip RMS against %s at 2 s (mm)' % name)
+        ax.set_ylabel('wall s per simulated s (one core)')
+        ax.set_title('hanging hair, %d x %d, against %s' % (size[0], size[1], name))
+        ax.legend(fontsize=7)
     save_figure(fig, os.path.join(directory, 'hanging_work_precision.png'))
     plt.close(fig)

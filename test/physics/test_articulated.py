@@ -273,6 +273,15 @@ def test_hanging_scene_matches_mujoco_at_one_step_per_frame():
     assert hanging.rms(anjyo, reference) > 0.1
 
 
+def test_hanging_scene_matches_pyelastica_at_one_step_per_frame():
+    """The same scene against PyElastica's Cosserat rods, a reference of another kind."""
+    pytest.importorskip('elastica')
+    reference, _ = hanging.run_pyelastica(20, 10, hanging.PYELASTICA_DT[10])
+    assert np.all(np.isfinite(reference)) and reference[:, 2].mean() < -0.1   # draped
+    tips, _, _ = hanging.run_hair_sim('articulated', 20, 10, 1 / 60)
+    assert hanging.rms(tips, reference) < 3e-3, hanging.rms(tips, reference)
+
+
 @pytest.mark.parametrize('n', [4, 12])
 def test_sag_free_offsets_hold_a_horizontal_strand(head, n):
     """With gravity compensation a horizontal strand is the equilibrium: it does not move."""
