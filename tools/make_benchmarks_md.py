@@ -227,8 +227,11 @@ def hanging_section(rows):
 def culling_savings(skip):
     """Return 'a % less on style, ...' for the culling rows of the skip records."""
     rows = [r for r in skip if 'visibility_test_ms' in r]
-    return ', '.join('%+.1f %% on %s' % (-100 * r['saving'], r['style'].split(' (')[0])
-                     for r in rows).replace('+-', '-')
+    return ', '.join('%+.1f %%%s on %s' % (
+        -100 * r['saving'],
+        ' (%+.1f to %+.1f)' % (-100 * r['saving_range'][1], -100 * r['saving_range'][0])
+        if 'saving_range' in r else '', r['style'].split(' (')[0])
+        for r in rows).replace('+-', '-')
 
 
 def culling_verdict(skip):
@@ -420,7 +423,9 @@ def main():
               'projection sphere: where a sphere that holds the projection sphere shadows two '
               'rows grown by the fix-up length, their walls are hidden whatever they turn out '
               'to be, and only the other rows are projected onto the scalp. The culled mesh, '
-              'test included, against the whole one in this run: %s. %s Downstream, '
+              'test included, against the whole one in this run (the median of 7 rounds '
+              'timed in turns with the whole mesh, the rounds\' range in brackets): %s. %s '
+              'Downstream, '
               'culling always saves the triangles sent to meshcat and drawn. The test costs '
               '%.3f ms on thesis_long.'
               % (culling_savings(skip), culling_verdict(skip), culling_test_ms), '']
