@@ -14,6 +14,15 @@ welded to the head, the implicit integrator, condim-1 (frictionless) contacts wi
 head sphere only, and the air damping applied as a force -nu m v at every segment's centre
 each step.
 
+MuJoCo's 1D flex (a discrete elastic rod per strand; the kind of strand the issue's speed
+target was measured with) is run too, at the steps hair_sim takes, as a peer: same EI
+(from `young` and the 0.5 mm circle section), node masses per segment, the first edge
+pinned, inextensible edges, the discrete integrator, and the air damping as slide-joint
+damping nu m. Its curvature is 2 tan(phi / 2) per vertex, stiffer than phi where a joint
+turns far: settled without the head, a 10-segment strand's tip stands 2 cm off the capsule
+chain's (the same as them within 0.15 mm in the first 0.1 s of the fall; a small, stiff
+cantilever within 0.1 %), so it is not a reference here.
+
 PyElastica, a second reference of another kind: a Cosserat rod (a continuum that bends,
 twists, stretches and shears; S elements, masses at the nodes) with the same EI and mass
 per metre, its first node and element fixed, gravity, the air damping as a decay of every
@@ -178,6 +187,64 @@ def _unstable(tips):
 # (50 x 10 at 1/2000 s, 50 x 20 at 1/8000 s: NaN warnings and a reset in MuJoCo)
 REFERENCE_DT = {10: 1 / 4000, 20: 1 / 16000}
 
+# MuJoCo flex: the edges' equality constraint at MuJoCo's default solref (0.02 s) let the
+# strands stretch as they fell (4.4 mm from the capsule chain at 0.1 s, against 1.1 mm);
+# MuJoCo raises it to twice the step where the step is longer
+FLEX_EDGE_SOLREF = 0.002
+
+
+def mujoco_flex_xml(n_strands, n_segments, radius=5e-4):
+    """Return the MJCF of the scene as MuJoCo 1D flexes (the step is set by the caller)."""
+    roots, normals = roots_and_normals(n_strands)
+    ds = LENGTH / n_segments
+    youngs = 4.0 * BENDING_STIFFNESS / (math.pi * radius ** 4)
+    element = ' '.join('%d %d' % (i, i + 1) for i in range(n_segments))
+    out = ['<mujoco model="hanging_hair_flex">',
+           '<option gravity="0 0 %g" integrator="discrete"/>' % -GRAVITY,
+           '<size memory="2G"/>',
+           '<worldbody>',
+           '<geom name="head" type="sphere" size="%g" contype="0" conaffinity="1" '
+           'condim="1"/>' % RADIUS]
+    for s in range(n_strands):
+        points = roots[s][None, :] + np.arange(n_segments + 1)[:, None] * ds * normals[s]
+        out.append(
+            '<flexcomp name="s%d" type="direct" dim="1" point="%s" element="%s" radius="%g" '
+            'mass="%g"><contact contype="1" conaffinity="0" condim="1" selfcollide="none"/>'
+            '<edge equality="true" solref="%g 1"/><elasticity young="%g" poisson="0.3"/>'
+            '<pin id="0 1"/></flexcomp>'
+            % (s, ' '.join('%.9g' % v for v in points.ravel()), element, radius,
+               LINEAR_DENSITY * LENGTH, FLEX_EDGE_SOLREF, youngs))
+    out += ['</worldbody>', '</mujoco>']
+    return '\n'.join(out)
+
+
+def run_mujoco_flex(n_strands, n_segments, dt, duration=DURATION):
+    """Run the scene as MuJoCo flexes; return (tips at the end (N, 3), wall s per sim. s)."""
+    import mujoco
+    model = mujoco.MjModel.from_xml_string(mujoco_flex_xml(n_strands, n_segments))
+    model.opt.timestep = dt
+    m = LINEAR_DENSITY * LENGTH / n_segments
+    tip_bodies = []
+    for s in range(n_strands):
+        for i in range(2, n_segments + 1):       # points 0 and 1 are pinned (no body)
+            b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, 's%d_%d' % (s, i))
+            mass = m if i < n_segments else 0.5 * m      # a segment's mass at its ends
+            model.body_mass[b] = mass
+            for j in range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b]):
+                if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
+                    model.dof_damping[model.jnt_dofadr[j]] = AIR_DAMPING * mass
+        tip_bodies.append(b)
+    data = mujoco.MjData(model)
+    mujoco.mj_setConst(model, data)
+    mujoco.mj_forward(model, data)
+    steps = int(round(duration / dt))
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        mujoco.mj_step(model, data)
+    wall = time.perf_counter() - t0
+    return data.xpos[tip_bodies].copy(), wall / duration
+
+
 # PyElastica's step per size (explicit: under the rod's fastest mode). Halving it moved
 # the tips of 50 x 10 by 0.08 mm RMS (median 0.5 um; 0.47 mm the most, the strand
 # balanced on the top).
@@ -293,16 +360,17 @@ def _errors(tips, ref, name):
 
 def run(quick=False, plots=None):
     """
-    Run the hanging-hair scene in both hair_sim models, MuJoCo and PyElastica.
+    Run the hanging-hair scene in both hair_sim models, MuJoCo (chains and flexes), PyElastica.
 
-    MuJoCo at REFERENCE_DT is the reference, PyElastica at PYELASTICA_DT a second one of
-    another kind; each record gives the tip RMS and median error against both, the mean
-    tip height and wall seconds per simulated second (one core, stepping only). The
-    speed rows step larger scenes: MuJoCo and PyElastica for the first 0.02 s at their
-    reference steps (the whole scene would take them hours at 1000 x 20; the strands
-    reach the head, and its contacts, only later), hair_sim at one step per 60 Hz frame
-    for the whole 2 s (the articulated model's cost falls as the strands come to rest:
-    each takes only the substeps it needs).
+    MuJoCo's chain at REFERENCE_DT is the reference, PyElastica at PYELASTICA_DT a second
+    one of another kind; MuJoCo's flexes run at hair_sim's steps, as a peer. Each record
+    gives the tip RMS and median error against both references, the mean tip height and
+    wall seconds per simulated second (one core, stepping only). The speed rows step
+    larger scenes: the references for the first 0.02 s at their steps (the whole scene
+    would take them hours at 1000 x 20; the strands reach the head, and its contacts, only
+    later), the flexes and hair_sim at one step per 60 Hz frame for the whole 2 s (the
+    articulated model's cost falls as the strands come to rest: each takes only the
+    substeps it needs).
     """
     from hair_sim.physics.simulator import SimulationDiverged
     sizes = [(50, 10)] if quick else [(50, 10), (50, 20)]
@@ -331,6 +399,15 @@ def run(quick=False, plots=None):
                             **_errors(second, ref, 'mujoco')})
             if have_mujoco:                               # the references, each way
                 records[-2].update(_errors(ref, second, 'pyelastica'))
+        for dt in (dts if have_mujoco else []):
+            tips, cost = run_mujoco_flex(n_strands, n_segments, dt)
+            bad = _unstable(tips)
+            tips = None if bad else tips
+            records.append({'solver': 'mujoco flex', **size, 'dt': dt, 'stable': not bad,
+                            'wall_s_per_sim_s': cost,
+                            'mean_tip_z': None if bad else float(tips[:, 2].mean()),
+                            **_errors(tips, ref, 'mujoco'),
+                            **_errors(tips, second, 'pyelastica')})
         for model in ('articulated', 'anjyo'):
             for dt in dts:
                 try:
@@ -350,6 +427,15 @@ def run(quick=False, plots=None):
             _, cost = run_mujoco(n_big, 20, REFERENCE_DT[20], duration=0.02)
             records.append({'solver': 'mujoco', **size, 'dt': REFERENCE_DT[20],
                             'wall_s_per_sim_s': cost, 'speed_only': True})
+        if have_mujoco:
+            import mujoco
+            try:
+                _, cost = run_mujoco_flex(n_big, 20, 1 / 60)
+                failed = None
+            except mujoco.FatalError as e:              # 1000 flexes: a 3 GB collision arena
+                cost, failed = None, str(e).splitlines()[0]
+            records.append({'solver': 'mujoco flex', **size, 'dt': 1 / 60,
+                            'wall_s_per_sim_s': cost, 'speed_only': True, 'failed': failed})
         if have_pyelastica:
             _, cost = run_pyelastica(n_big, 20, PYELASTICA_DT[20], duration=0.02)
             records.append({'solver': 'pyelastica', **size, 'dt': PYELASTICA_DT[20],
@@ -383,7 +469,7 @@ def _plot(records, directory):
     for ax, (key, name) in zip(axes[0], refs):
         field = 'tip_rms_vs_%s_m' % key
         for solver, marker in (('hair_sim articulated', 'o'), ('hair_sim anjyo', 's'),
-                               ('mujoco', 'D'), ('pyelastica', '^')):
+                               ('mujoco flex', 'v'), ('mujoco', 'D'), ('pyelastica', '^')):
             rs = [r for r in records if r['solver'] == solver and r.get(field)]
             if not rs:
                 continue
