@@ -358,6 +358,21 @@ def _errors(tips, ref, name):
                 float(np.median(np.linalg.norm(tips - ref, axis=1))) if ok else None}
 
 
+def _accuracy_record(solver, size, dt, tips, cost, references):
+    """
+    Return a record of a 2 s run: tips None if it was unstable (or diverged).
+
+    references maps a reference's name to its tips (None if it has none): each adds the
+    tip RMS and median error against it.
+    """
+    record = {'solver': solver, **size, 'dt': dt, 'stable': tips is not None,
+              'wall_s_per_sim_s': cost,
+              'mean_tip_z': None if tips is None else float(tips[:, 2].mean())}
+    for name, ref in references.items():
+        record.update(_errors(tips, ref, name))
+    return record
+
+
 def run(quick=False, plots=None):
     """
     Run the hanging-hair scene in both hair_sim models, MuJoCo (chains and flexes), PyElastica.
@@ -383,44 +398,33 @@ def run(quick=False, plots=None):
         if have_mujoco:
             dt = REFERENCE_DT[n_segments]
             tips, cost = run_mujoco(n_strands, n_segments, dt)
-            bad = _unstable(tips) or tips[:, 2].mean() > 0.0    # a reset leaves them up
-            records.append({'solver': 'mujoco', **size, 'dt': dt, 'stable': not bad,
-                            'wall_s_per_sim_s': cost,
-                            'mean_tip_z': None if bad else float(tips[:, 2].mean())})
-            ref = None if bad else tips
+            if _unstable(tips) or tips[:, 2].mean() > 0.0:      # a reset leaves them up
+                tips = None
+            ref = tips
+            reference = _accuracy_record('mujoco', size, dt, tips, cost, {})
+            records.append(reference)
         if have_pyelastica:
             dt = PYELASTICA_DT[n_segments]
             tips, cost = run_pyelastica(n_strands, n_segments, dt)
-            bad = _unstable(tips)
-            second = None if bad else tips
-            records.append({'solver': 'pyelastica', **size, 'dt': dt, 'stable': not bad,
-                            'wall_s_per_sim_s': cost,
-                            'mean_tip_z': None if bad else float(tips[:, 2].mean()),
-                            **_errors(second, ref, 'mujoco')})
+            second = None if _unstable(tips) else tips
+            records.append(_accuracy_record('pyelastica', size, dt, second, cost,
+                                            {'mujoco': ref}))
             if have_mujoco:                               # the references, each way
-                records[-2].update(_errors(ref, second, 'pyelastica'))
+                reference.update(_errors(ref, second, 'pyelastica'))
+        both = {'mujoco': ref, 'pyelastica': second}
         for dt in (dts if have_mujoco else []):
             tips, cost = run_mujoco_flex(n_strands, n_segments, dt)
-            bad = _unstable(tips)
-            tips = None if bad else tips
-            records.append({'solver': 'mujoco flex', **size, 'dt': dt, 'stable': not bad,
-                            'wall_s_per_sim_s': cost,
-                            'mean_tip_z': None if bad else float(tips[:, 2].mean()),
-                            **_errors(tips, ref, 'mujoco'),
-                            **_errors(tips, second, 'pyelastica')})
+            records.append(_accuracy_record('mujoco flex', size, dt,
+                                            None if _unstable(tips) else tips, cost, both))
         for model in ('articulated', 'anjyo'):
             for dt in dts:
                 try:
                     tips, cost, _ = run_hair_sim(model, n_strands, n_segments, dt)
-                    bad = _unstable(tips)
+                    tips = None if _unstable(tips) else tips
                 except SimulationDiverged:
-                    tips, cost, bad = None, None, True
-                tips = None if bad else tips
-                records.append({'solver': 'hair_sim ' + model, **size, 'dt': dt,
-                                'stable': not bad, 'wall_s_per_sim_s': cost,
-                                'mean_tip_z': None if bad else float(tips[:, 2].mean()),
-                                **_errors(tips, ref, 'mujoco'),
-                                **_errors(tips, second, 'pyelastica')})
+                    tips, cost = None, None
+                records.append(_accuracy_record('hair_sim ' + model, size, dt, tips, cost,
+                                                both))
     for n_big in ([200] if quick else [200, 1000]):
         size = {'strands': n_big, 'segments': 20}
         if have_mujoco:
