@@ -32,6 +32,11 @@ def shipped_style(name):
     return os.path.join(hairstyles_dir(), name + '.yaml')
 
 
+def shipped_style_names():
+    """Return the names of the shipped hairstyles, sorted (without .yaml)."""
+    return sorted(f[:-5] for f in os.listdir(hairstyles_dir()) if f.endswith('.yaml'))
+
+
 def shipped_head(name):
     """Return the path of a shipped head model by name (without .yaml)."""
     return os.path.join(heads_dir(), name + '.yaml')

@@ -5,6 +5,8 @@ Write BENCHMARKS.md from the JSON and plots of a full benchmark run in doc/bench
         .venv/bin/hair_sim_bench $c --json --plots doc/bench > doc/bench/$c.json; done
     .venv/bin/hair_sim_bench stress --json --model articulated \
         > doc/bench/stress_articulated.json
+    for m in anjyo articulated; do
+        .venv/bin/hair_sim_bench settle --json --model $m > doc/bench/settle_$m.json; done
     .venv/bin/python tools/make_benchmarks_md.py
 """
 
@@ -296,6 +298,36 @@ def stress_articulated_section(stress):
                           ('slept', 'slept'), ('woke', 'woke')]), '']
 
 
+def settle_section(by_model):
+    """Return the lines of the settle tables, one per model ({model: settle JSON})."""
+    out = ['## Every style at every step comes to rest (`hair_sim_bench settle --json`)', '',
+           'Per shipped style and step: 2 s of the stress bench\'s violent head motion in a '
+           'wind of 0, 10 or 30 m/s (turbulence 1, seeds 1-4), then no wind and the head '
+           'still; "not asleep" counts the runs whose hair was not asleep 8 s later, and the '
+           'last column is the largest vertex move in the last step of those (a strand '
+           'still swinging). Promised: the model\'s stability check accepts the step (the '
+           'node accepts it as `sim_rate`).', '']
+    for model, result in by_model.items():
+        rows = result['summary']
+        for r in rows:
+            r['step'] = '1/%d' % round(1 / r['dt'])
+        bad = [r for r in rows if r['promised'] and r['not_asleep']]
+        cells = ['%s at %s (%d of %d)' % (r['style'], r['step'], r['not_asleep'], r['runs'])
+                 for r in bad]
+        out += ['### %s model' % ('Thesis' if model == 'anjyo' else 'Articulated'), '',
+                '%d of %d runs not asleep within 8 s; %d of %d promised style-and-step cells '
+                'with such a run%s.' % (
+                    sum(r['not_asleep'] for r in rows), sum(r['runs'] for r in rows),
+                    len(bad), sum(r['promised'] for r in rows),
+                    (': ' + ', '.join(cells)) if cells else ''), '',
+                table(rows, [('style', 'style'), ('step', 'dt'), ('promised', 'promised'),
+                             ('runs', 'runs'), ('not_asleep', 'not asleep'),
+                             ('slowest_sleep_s', 'slowest to sleep (s)'),
+                             ('worst_last_step_move_m', 'still moving, last step (m)')]),
+                '']
+    return out
+
+
 def main():
     """Write BENCHMARKS.md."""
     acc = load('accuracy')
@@ -474,6 +506,10 @@ def main():
               'trips it legitimately.', '']
     if os.path.exists(os.path.join(BENCH, 'stress_articulated.json')):
         parts += stress_articulated_section(load('stress_articulated'))
+    settled = {m: load('settle_' + m) for m in ('anjyo', 'articulated')
+               if os.path.exists(os.path.join(BENCH, 'settle_%s.json' % m))}
+    if settled:
+        parts += settle_section(settled)
     if os.path.exists(os.path.join(BENCH, 'hanging.json')):
         parts += hanging_section(load('hanging'))
     if os.path.exists(os.path.join(BENCH, 'head_fit.json')):

@@ -6,6 +6,8 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
     hair_sim_bench skip     [--json] [--quick]                 features on and off
     hair_sim_bench stress   [--json] [--quick] [--plots DIR] [--model M]
                                 stability under abuse (M: anjyo, the default, or articulated)
+    hair_sim_bench settle   [--json] [--quick] [--model M]     every shipped style at
+                                every step: asleep within 8 s of violent motion in wind?
     hair_sim_bench node     [--json] [--quick]                 the node from outside:
                                 rates, latency, CPU, avatars per machine, load gaps
     hair_sim_bench budget   [--json] [--quick]                 per-vertex costs behind
@@ -23,16 +25,16 @@ from hair_sim.bench.common import clean, emit
 
 
 def main(argv=None):
-    """Run one benchmark command; stress exits 1 if a promised case failed."""
+    """Run one benchmark command; stress and settle exit 1 if a promised case failed."""
     parser = argparse.ArgumentParser(prog='hair_sim_bench', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress', 'node',
-                                            'budget', 'hanging'])
+    parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress', 'settle',
+                                            'node', 'budget', 'hanging'])
     parser.add_argument('--json', action='store_true', help='print JSON on stdout')
     parser.add_argument('--quick', action='store_true', help='a short run (under a minute)')
     parser.add_argument('--plots', default='bench_out', help='directory for PNG plots')
     parser.add_argument('--model', choices=['anjyo', 'articulated'], default='anjyo',
-                        help='the strand model the stress cases run (stress only)')
+                        help='the strand model the cases run (stress and settle only)')
     args = parser.parse_args(argv)
     os.environ.setdefault('NUMBA_NUM_THREADS', '1')
     if args.command == 'accuracy':
@@ -52,6 +54,21 @@ def main(argv=None):
     elif args.command == 'hanging':
         from hair_sim.bench import hanging
         emit(hanging.run(args.quick, args.plots), args.json, 'hanging')
+    elif args.command == 'settle':
+        from hair_sim.bench import settle
+        result = settle.run(args.quick, args.model)
+        if args.json:
+            print(json.dumps(clean(result), indent=1))
+        else:
+            emit(result['summary'], False, 'settle')
+        failed = [r for r in result['summary'] if r['promised'] and r['not_asleep']]
+        if failed:
+            cells = ['%s/%s/dt=1/%d (%d of %d)'
+                     % (r['style'], r['model'], round(1 / r['dt']), r['not_asleep'], r['runs'])
+                     for r in failed]
+            print('settle: promised steps where the hair did not always sleep: %s'
+                  % ', '.join(cells), file=sys.stderr)
+            return 1
     elif args.command == 'skip':
         from hair_sim.bench import skip
         emit(skip.run(args.quick), args.json, 'skip')

@@ -6,7 +6,6 @@ off: sleeping against awake, culling from a front viewpoint against none, wind, 
 springs, and the collision broad phase (far spheres skipped against every sphere tested).
 """
 
-import os
 import time
 
 import numpy as np
@@ -136,8 +135,8 @@ def run(quick=False, plot_dir=None):
     records = []
     for style in progress(styles, 'skip'):
         records += feature_records(style, frames)
-    shipped = sorted(f[:-5] for f in os.listdir(paths.hairstyles_dir()) if f.endswith('.yaml'))
-    for style in progress([load_hairstyle(paths.shipped_style(n)) for n in shipped] +
+    for style in progress([load_hairstyle(paths.shipped_style(n))
+                           for n in paths.shipped_style_names()] +
                           [styles[1]], 'culling'):
         records.append(culling_record(style, 10 * frames))
     return records

@@ -438,18 +438,24 @@ class HairSimulator:
         if saved is not None:
             # a contact or a whip the substep count did not foresee: take the step again
             # from the saved state, every strand at the finest count: RETRY_SUBSTEP_FACTOR
-            # times it when the state came out non-finite; as it is when strands took
-            # their own counts and one ended the step swinging OUTRAN_FACTOR times faster
-            # than its count allows (a blow-up that has not reached inf yet: in the stress
-            # bench's gale without inter-strip springs, a strand taking 32 substeps where
-            # the finest took 256 reached 590 m/s, then NaN)
+            # times it when the state came out non-finite; again (see below) when a strand
+            # ended the step swinging OUTRAN_FACTOR times faster than its count allows (a
+            # blow-up that has not reached inf yet: in the stress bench's gale without
+            # inter-strip springs, a strand taking 32 substeps where the finest took 256
+            # reached 590 m/s, then NaN)
             counts = self._last_substeps
             finest = int(np.max(counts))
             again = None
             if not finite:
                 again = RETRY_SUBSTEP_FACTOR * finest
-            elif np.min(counts) < finest and self.solver.outran(h, counts).any():
-                again = finest
+            elif self.solver.outran(h, counts).any():
+                # strands at their own counts take the finest; strands that all took the
+                # finest already, what the fastest swing at the step's end needs: a style
+                # at rest (1 substep) hit by a 30 m/s gale and a violent start ended its
+                # first 1/60 s step at 500 rad/s, unretried, and the next step diverged
+                # at any count (thesis_short and bob_fringe, `hair_sim_bench settle`)
+                again = finest if np.min(counts) < finest else \
+                    max(finest, int(np.max(self.solver.substeps_for(h))))
             if again is not None:
                 self._restore(saved)
                 self.counters['retried_steps'] += 1

@@ -83,7 +83,7 @@ is positive definite with STABILITY_MARGIN (`stiffness_to_hold`).
 """
 
 from collections import namedtuple
-from math import atan2, cos, sin, sqrt
+from math import atan2, cos, pi, sin, sqrt
 
 from numba import njit
 import numpy as np
@@ -93,7 +93,7 @@ from hair_sim.physics.forces import (CONTACT_C, CONTACT_FIELDS, CONTACT_K, CONTA
                                      CONTACT_NX, CONTACT_NY, CONTACT_NZ, CONTACT_SLOTS,
                                      CONTACT_LOAD, CONTACT_LOAD_MID, CONTACT_SPHERE,
                                      explicit_stability_problem,
-                                     GUARD_MOVES, guard_segment, MAX_RATE)
+                                     GUARD_LIFT, GUARD_MOVES, guard_segment, MAX_RATE)
 
 # weight of the implicit spring increment: >= 1/4 is stable for a still base; a stiff root
 # joint driven by a turning head grew at 0.3 (measured, 1/60 s) and holds at 0.5
@@ -108,7 +108,8 @@ MAX_STEP_ROTATION = 0.05
 # frame (tips near 300 rad/s) ran out of substeps and bob_fringe diverged twice in 3 s
 MAX_SUBSTEPS = 256
 # a strand that ends a step needing more than this many times the substeps it took has
-# outrun its count (`outran`): the simulator takes a multirate step again, shared
+# outrun its count (`outran`): the simulator takes the step again, shared, at least at
+# the count the swings at its end need
 OUTRAN_FACTOR = 16
 # rad of spring deflection a joint may need to hold its style (sag-free offsets); beyond it
 # the joint is stiffened: measured, offsets past ~1 rad (up to 7.9 on the long styles,
@@ -134,14 +135,6 @@ AIR_DAMPING_SHARE = 1.0 / 3.0
 # still moving 8 s later (fringe strands on the forehead shaking 1-2 mm, turned out by the
 # guard every step) and thesis_long slept after 4.7 s; with it 6.9, 2.9 and 2.7 s.
 CONTACT_DAMPING_RATE = 200.0
-# m: how far outside a sphere the position guard puts a vertex it turns out. The thesis
-# model's 0.2 mm (GUARD_MARGIN) is a lift: a joint spring pressing a vertex onto the head
-# pushes it back in, the guard lifts it out again, and each lift is work done against the
-# spring. In the chain that work fed limit cycles: after the stress bench's random motion
-# a thesis_long strand rang for ever (its tip 0.6 mm peak to peak at 4.6 Hz: the vertex on
-# the head sank through the margin, was lifted out, sank again); with the vertex put back
-# 1 um out the same strands slept 2.9 s after the head stopped.
-GUARD_LIFT = 1e-6
 # The contact impulses of one strand are coupled through its chain: one pass, root to tip,
 # let the impulse at a tip undo part of the one at the segment before it (seen after the
 # stress bench's random run, on a strand with two guarded ends: the first moved inwards at
@@ -319,43 +312,85 @@ def bend_vector(S):
     return (-f * vy, f * vx, 0.0), t, st
 
 
-@njit_without_refcounts
-def spring_error(Rp, rest_rel, Ri, out, scratch):
-    """Write the bend e of the joint between Rp and Ri (see bend_vector); scratch: S."""
-    joint_rotation(Rp, rest_rel, Ri, scratch)
-    e, _, _ = bend_vector(scratch)
-    out[0], out[1], out[2] = e
-
-
 # ------------------------------------------------------------------ the chain step
+@njit_without_refcounts
+def _preload_weight(t, st, vz):
+    """
+    Return (sigma, d sigma / d theta) of the bend's preload at bend angle t (see bend_energy).
+
+    1 up to a right angle, sin(theta) beyond: C1 at pi / 2, and 0 at pi.
+    """
+    if t <= 0.5 * pi:
+        return 1.0, 0.0
+    return st, vz
+
+
+@njit_without_refcounts
+def bend_energy(S, e0):
+    """
+    Return the bend spring's energy over k for the joint rotation S and preload e0.
+
+    |e - e0|^2 / 2 with e the bend (bend_vector), that is (theta^2 - 2 theta n.e0 +
+    |e0|^2) / 2 with n the bend's unit axis; the preload's term is weighted by
+    sigma(theta) (_preload_weight: 1 up to a right angle, sin(theta) beyond). Unweighted,
+    the energy jumps across a fold (theta = pi, where n turns round), and the torque near
+    one grew like 1 / sin(theta): after 2 s of violent head motion in a 30 m/s gale at
+    1/60 s, the articulated model diverged in 5 of 16 runs (thesis_short, bob_fringe,
+    side_swept_long), each time a root joint folded past ~170 deg being flung at
+    10^4 rad/s in one substep. A style's preload stays below MAX_PRELOAD (1 rad), where
+    sigma is 1: its rest shapes and their stability are unchanged.
+    """
+    vx, vy, vz = S[0, 2], S[1, 2], S[2, 2]
+    t, st, f = _bend_angle(vx, vy, vz)
+    # sigma theta n.e0, with g = z x v = sin(theta) n: f g.e0 up to a right angle (sigma =
+    # 1, f = theta / sin(theta)), theta g.e0 beyond (sigma = sin(theta))
+    ge0 = -vy * e0[0] + vx * e0[1]
+    pre = f * ge0 if t <= 0.5 * pi else t * ge0
+    return 0.5 * (t * t - 2.0 * pre + e0[0] * e0[0] + e0[1] * e0[1] + e0[2] * e0[2])
+
+
 @njit_without_refcounts
 def _bend_deviation(S, e0, q):
     """
     Write the bend spring's generalised deviation q (child frame): torque -k R q.
 
     S is the joint's rotation from rest (joint_rotation), v = S z the rod's axis in the
-    rest frame, e = f(v_z) g its bend (bend_vector: g = z x v, f = theta / sin theta). The
-    spring's energy is k |e - e0|^2 / 2, a function of v alone (the joints have no twist);
-    a turn delta of the rod moves v by delta x v, so the torque is -v x grad_v E with
-    grad_v E = k (f (w_y, -w_x, 0) + f'(v_z) (g . w) z), w = e - e0, and q = S^T (v x
-    grad_v E) / k. (The gradient over all rotations, J_r(e)^-T (e - e0) with e = log S,
-    counts the frame's twist as a deviation: a sequence of bends twists a frame, and that
-    twist was held for ever. Within a step the frames drift off twist-free, so e is taken
-    from v alone.) A rod folded back onto its rest axis (v = -z) gets no torque.
+    rest frame, theta its angle from z and n = z x v / sin(theta) the bend's axis. The
+    spring's energy k E (bend_energy) is a function of v alone (the joints have no twist).
+    A turn delta of the rod changes theta by delta.n and the bend plane's azimuth psi by
+    delta.m / sin(theta), m = (z - v cos(theta)) / sin(theta), so the torque is -k
+    (dE/dtheta n + dE/dpsi / sin(theta) m), written without the cancellations of a
+    Cartesian gradient (near a fold those lost every digit). (The gradient over all
+    rotations, J_r(e)^-T (e - e0) with e = log S, counts the frame's twist as a
+    deviation: a sequence of bends twists a frame, and that twist was held for ever.
+    Within a step the frames drift off twist-free, so e is taken from v alone.) A rod
+    folded back onto its rest axis (v = -z) gets no torque.
     """
     vx, vy, vz = S[0, 2], S[1, 2], S[2, 2]
     t, st, f = _bend_angle(vx, vy, vz)
-    wx, wy = -f * vy - e0[0], f * vx - e0[1]      # w = e - e0 (e_z = 0)
     if t < 1e-3:
-        fp = -(1.0 / 3.0 + 2.0 * t * t / 15.0)    # df / dv_z, to O(theta^4)
+        # near rest: the Cartesian gradient of |e - e0|^2 / 2, with f to O(theta^4)
+        wx, wy = -f * vy - e0[0], f * vx - e0[1]      # w = e - e0 (e_z = 0)
+        fp = -(1.0 / 3.0 + 2.0 * t * t / 15.0)        # df / dv_z
+        gw = -vy * wx + vx * wy
+        ax, ay, az = f * wy, -f * wx, fp * gw         # grad_v E
+        qx, qy, qz = vy * az - vz * ay, vz * ax - vx * az, vx * ay - vy * ax   # v x grad
     elif st > 1e-12:
-        fp = -(st - t * vz) / (st * st * st)
+        nx, ny = -vy / st, vx / st                    # n (n_z = 0)
+        ne = nx * e0[0] + ny * e0[1]                  # n.e0
+        te = -ny * e0[0] + nx * e0[1]                 # (z x n).e0 = dn/dpsi . e0
+        sigma, dsigma = _preload_weight(t, st, vz)
+        d_theta = t - (sigma + t * dsigma) * ne       # dE / dtheta
+        # dE/dpsi / sin(theta) = -theta sigma te / sin(theta); sigma / sin(theta) = 1 past
+        # a right angle
+        d_psi = -t * (sigma / st if t <= 0.5 * pi else 1.0) * te
+        mx, my, mz = -vx * vz / st, -vy * vz / st, st  # m
+        qx = d_theta * nx + d_psi * mx
+        qy = d_theta * ny + d_psi * my
+        qz = d_psi * mz
     else:
         q[0] = q[1] = q[2] = 0.0
         return
-    gw = -vy * wx + vx * wy
-    ax, ay, az = f * wy, -f * wx, fp * gw         # grad_v E / k
-    qx, qy, qz = vy * az - vz * ay, vz * ax - vx * az, vx * ay - vy * ax   # v x grad
     q[0] = S[0, 0] * qx + S[1, 0] * qy + S[2, 0] * qz
     q[1] = S[0, 1] * qx + S[1, 1] * qy + S[2, 1] * qz
     q[2] = S[0, 2] * qx + S[1, 2] * qy + S[2, 2] * qz
@@ -1522,17 +1557,15 @@ class ArticulatedSolver:
                      + 0.5 * (ip * w_perp2 + self.inertia_axial * wd ** 2).sum())
 
     def potential_energy(self, sim):
-        """Return the springs' energy (J): sum of k |e - e0|^2 / 2 over the joints."""
-        e = np.zeros(3)
+        """Return the springs' energy (J): sum of k bend_energy over the joints."""
         q = np.zeros((3, 3))
         total = 0.0
         R_head = sim.head_pose[0]
         for s in range(self.R.shape[0]):
             for i in range(self.R.shape[1]):
                 parent = R_head if i == 0 else self.R[s, i - 1]
-                spring_error(parent, self.rest_rel[s, i], self.R[s, i], e, q)
-                e -= self.offset[s, i]
-                total += 0.5 * self.k[s, i] * float(e @ e)
+                joint_rotation(parent, self.rest_rel[s, i], self.R[s, i], q)
+                total += self.k[s, i] * bend_energy(q, self.offset[s, i])
         return total
 
     @staticmethod

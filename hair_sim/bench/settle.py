@@ -1,0 +1,88 @@
+"""
+hair_sim_bench settle: every shipped style, at every step, comes to rest after abuse.
+
+Per shipped style, solver step, wind and turbulence seed: 2 s of the stress bench's
+violent head motion (`scenarios.violent`) in the wind, then the wind stops and the head
+holds its last pose for up to 8 s. A run settles when the hair falls asleep
+(`HairSimulator.sleeping`: no vertex left a sleep_tolerance ball for sleep_delay) within
+those 8 s. Each run records when it slept, or the largest vertex move of its last step
+(a strand still swinging shows there), and whether the model's own stability check
+(`stability_problem`) accepts the step: a step it accepts is a promise that the hair
+settles. The stress bench abuses one style in many ways; this abuses every style in one
+way, at every step a user may pick.
+"""
+
+import numpy as np
+
+from hair_sim import load_hairstyle, paths
+from hair_sim.bench.common import progress
+from hair_sim.bench.scenarios import violent
+from hair_sim.physics.simulator import HairSimulator, stability_problem
+
+STEPS = (1 / 60, 1 / 120, 1 / 240)
+WINDS = (0.0, 10.0, 30.0)          # m/s along +x, turbulence 1
+SEEDS = (1, 2, 3, 4)               # the wind's turbulence seeds
+MOTION_S = 2.0                     # s of violent motion in the wind
+WINDOW_S = 8.0                     # s the hair has to fall asleep in, head still, no wind
+
+
+def run_one(style, model, dt, wind, seed):
+    """Return the record of one run (see the module text)."""
+    sim = HairSimulator(style, model=model)
+    promised = stability_problem(sim.params, sim, dt) is None
+    sim.set_wind([wind, 0.0, 0.0], turbulence=1.0, seed=seed)
+    t = 0.0
+    for i in range(int(round(MOTION_S / dt))):
+        t = (i + 1) * dt
+        sim.set_head_pose(t, *violent(t))
+        sim.step(dt)
+    sim.set_wind([0.0, 0.0, 0.0])
+    hold = violent(t)
+    slept_after = None
+    last_move = 0.0
+    for i in range(int(round(WINDOW_S / dt))):
+        before = sim.pos.copy()
+        sim.set_head_pose(t + (i + 1) * dt, *hold)
+        sim.step(dt)
+        if sim.sleeping:
+            slept_after = (i + 1) * dt
+            break
+        last_move = float(np.linalg.norm(sim.pos - before, axis=2).max())
+    return {'style': style.name, 'model': model, 'dt': dt, 'wind_mps': wind, 'seed': seed,
+            'promised': promised, 'slept_after_s': slept_after,
+            'last_step_max_move_m': 0.0 if slept_after is not None else last_move}
+
+
+def summary(runs):
+    """Return one row per style and step: runs, how many did not sleep, the worst move."""
+    rows = []
+    for style in dict.fromkeys(r['style'] for r in runs):
+        for dt in dict.fromkeys(r['dt'] for r in runs):
+            cell = [r for r in runs if r['style'] == style and r['dt'] == dt]
+            if not cell:
+                continue
+            awake = [r for r in cell if r['slept_after_s'] is None]
+            slept = [r['slept_after_s'] for r in cell if r['slept_after_s'] is not None]
+            rows.append({'style': style, 'model': cell[0]['model'], 'dt': dt,
+                         'promised': all(r['promised'] for r in cell), 'runs': len(cell),
+                         'not_asleep': len(awake),
+                         'slowest_sleep_s': max(slept) if slept else None,
+                         'worst_last_step_move_m': max(
+                             (r['last_step_max_move_m'] for r in awake), default=0.0)})
+    return rows
+
+
+def run(quick=False, model='anjyo'):
+    """
+    Run every shipped style at every step, wind and seed; return {'runs', 'summary'}.
+
+    quick: the 30 m/s wind and seed 1 only (a run per style and step).
+    """
+    names = paths.shipped_style_names()
+    winds, seeds = ((30.0,), (1,)) if quick else (WINDS, SEEDS)
+    jobs = [(name, dt, wind, seed) for name in names for dt in STEPS for wind in winds
+            for seed in seeds]
+    styles = {name: load_hairstyle(paths.shipped_style(name)) for name in names}
+    runs = [run_one(styles[name], model, dt, wind, seed)
+            for name, dt, wind, seed in progress(jobs, 'settle %s' % model)]
+    return {'runs': runs, 'summary': summary(runs)}
