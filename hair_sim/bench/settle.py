@@ -6,7 +6,8 @@ violent head motion (`scenarios.violent`) in the wind, then the wind stops and t
 holds its last pose for up to 8 s. A run settles when the hair falls asleep
 (`HairSimulator.sleeping`: no vertex left a sleep_tolerance ball for sleep_delay) within
 those 8 s. Each run records when it slept, or the largest vertex move of its last step
-(a strand still swinging shows there), and whether the model's own stability check
+(a strand still swinging shows there), whether it diverged (the simulator put the hair
+back at rest: not asleep), and whether the model's own stability check
 (`stability_problem`) accepts the step: a step it accepts is a promise that the hair
 settles. The stress bench abuses one style in many ways; this abuses every style in one
 way, at every step a user may pick.
@@ -17,6 +18,7 @@ import numpy as np
 from hair_sim import load_hairstyle, paths
 from hair_sim.bench.common import progress
 from hair_sim.bench.scenarios import violent
+from hair_sim.physics import SimulationDiverged
 from hair_sim.physics.simulator import HairSimulator, stability_problem
 
 STEPS = (1 / 60, 1 / 120, 1 / 240)
@@ -31,30 +33,35 @@ def run_one(style, model, dt, wind, seed):
     sim = HairSimulator(style, model=model)
     promised = stability_problem(sim.params, sim, dt) is None
     sim.set_wind([wind, 0.0, 0.0], turbulence=1.0, seed=seed)
+    record = {'style': style.name, 'model': model, 'dt': dt, 'wind_mps': wind, 'seed': seed,
+              'promised': promised, 'diverged': False, 'slept_after_s': None,
+              'last_step_max_move_m': None}
     t = 0.0
-    for i in range(int(round(MOTION_S / dt))):
-        t = (i + 1) * dt
-        sim.set_head_pose(t, *violent(t))
-        sim.step(dt)
-    sim.set_wind([0.0, 0.0, 0.0])
-    hold = violent(t)
-    slept_after = None
-    last_move = 0.0
-    for i in range(int(round(WINDOW_S / dt))):
-        before = sim.pos.copy()
-        sim.set_head_pose(t + (i + 1) * dt, *hold)
-        sim.step(dt)
-        if sim.sleeping:
-            slept_after = (i + 1) * dt
-            break
-        last_move = float(np.linalg.norm(sim.pos - before, axis=2).max())
-    return {'style': style.name, 'model': model, 'dt': dt, 'wind_mps': wind, 'seed': seed,
-            'promised': promised, 'slept_after_s': slept_after,
-            'last_step_max_move_m': 0.0 if slept_after is not None else last_move}
+    try:
+        for i in range(int(round(MOTION_S / dt))):
+            t = (i + 1) * dt
+            sim.set_head_pose(t, *violent(t))
+            sim.step(dt)
+        sim.set_wind([0.0, 0.0, 0.0])
+        hold = violent(t)
+        last_move = 0.0
+        for i in range(int(round(WINDOW_S / dt))):
+            before = sim.pos.copy()
+            sim.set_head_pose(t + (i + 1) * dt, *hold)
+            sim.step(dt)
+            if sim.sleeping:
+                record['slept_after_s'] = (i + 1) * dt
+                last_move = 0.0
+                break
+            last_move = float(np.linalg.norm(sim.pos - before, axis=2).max())
+        record['last_step_max_move_m'] = last_move
+    except SimulationDiverged:               # (the simulator put the hair back at rest)
+        record['diverged'] = True
+    return record
 
 
 def summary(runs):
-    """Return one row per style and step: runs, how many did not sleep, the worst move."""
+    """Return one row per style and step: runs, not asleep (diverged among them), worst move."""
     rows = []
     for style in dict.fromkeys(r['style'] for r in runs):
         for dt in dict.fromkeys(r['dt'] for r in runs):
@@ -66,9 +73,10 @@ def summary(runs):
             rows.append({'style': style, 'model': cell[0]['model'], 'dt': dt,
                          'promised': all(r['promised'] for r in cell), 'runs': len(cell),
                          'not_asleep': len(awake),
+                         'diverged': sum(bool(r.get('diverged')) for r in cell),
                          'slowest_sleep_s': max(slept) if slept else None,
                          'worst_last_step_move_m': max(
-                             (r['last_step_max_move_m'] for r in awake), default=0.0)})
+                             (r['last_step_max_move_m'] or 0.0 for r in awake), default=0.0)})
     return rows
 
 

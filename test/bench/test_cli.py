@@ -80,3 +80,21 @@ def test_stress_quick(tmp_path, command):
     assert any(not c['promised'] for c in data['cases'])    # the unstable ones are tried too
     assert {r['integrator'] for r in data['stability_map']} == {'explicit', 'implicit'}
     assert os.path.isfile(tmp_path / 'stability_map.png')
+
+
+def test_settle_quick(tmp_path):
+    """Every shipped style at every step, one run each; exit 1 exactly when a promise broke."""
+    from hair_sim import paths
+    rc, result = bench('settle', tmp_path)
+    runs, rows = result['runs'], result['summary']
+    assert {r['style'] for r in runs} == set(paths.shipped_style_names())
+    assert {round(1 / r['dt']) for r in runs} == {60, 120, 240}
+    for r in runs:
+        assert r['slept_after_s'] is None or 0.0 < r['slept_after_s'] <= 8.0
+        assert r['diverged'] is False or r['slept_after_s'] is None
+    for row in rows:
+        cell = [r for r in runs if r['style'] == row['style'] and r['dt'] == row['dt']]
+        assert row['runs'] == len(cell)
+        assert row['not_asleep'] == sum(r['slept_after_s'] is None for r in cell)
+    broken = any(row['promised'] and row['not_asleep'] for row in rows)
+    assert rc == (1 if broken else 0)
