@@ -17,7 +17,7 @@ import numpy as np
 
 from hair_sim import load_hairstyle, paths
 from hair_sim.bench.common import progress
-from hair_sim.bench.scenarios import violent
+from hair_sim.bench.scenarios import drive, violent
 from hair_sim.physics import SimulationDiverged
 from hair_sim.physics.simulator import HairSimulator, stability_problem
 
@@ -36,12 +36,8 @@ def run_one(style, model, dt, wind, seed):
     record = {'style': style.name, 'model': model, 'dt': dt, 'wind_mps': wind, 'seed': seed,
               'promised': promised, 'diverged': False, 'slept_after_s': None,
               'last_step_max_move_m': None}
-    t = 0.0
     try:
-        for i in range(int(round(MOTION_S / dt))):
-            t = (i + 1) * dt
-            sim.set_head_pose(t, *violent(t))
-            sim.step(dt)
+        t = drive(sim, violent, 0.0, MOTION_S, dt)
         sim.set_wind([0.0, 0.0, 0.0])
         hold = violent(t)
         last_move = 0.0

@@ -288,8 +288,9 @@ def _contact_weight(d, r):
     """
     Return how much in contact a point at distance d from a centre is.
 
-    1 up to where the guard leaves vertices (GUARD_MARGIN outside), 0 past the skin, linear
-    between: an on/off switch would chatter at the skin's edge.
+    1 up to GUARD_MARGIN outside (the guard leaves vertices GUARD_LIFT out, well within
+    it), 0 past the skin, linear between: an on/off switch would chatter at the skin's
+    edge.
     """
     return min(1.0, max(0.0, (r + CONTACT_SKIN - d) / (CONTACT_SKIN - GUARD_MARGIN)))
 
