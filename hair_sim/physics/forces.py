@@ -12,7 +12,7 @@ position guard that keeps vertices out of spheres. State goes in as namedtuples 
 """
 
 from collections import namedtuple
-from math import pi, sqrt
+from math import acos, atan2, pi, sqrt
 
 import numpy as np
 
@@ -284,6 +284,40 @@ def _remove_inward(f, nx, ny, nz, w):
 
 
 @njit_without_refcounts
+def hinge_end_force(s, i, length, hinge):
+    """
+    Return the force at segment i's end (world) whose moments are its hinge spring's (eq. 3).
+
+    hinge is the thesis model's (chart, theta, phi, trig, rest directions (head frame),
+    hinge stiffness, the head's rotation R), its state where the step starts. Eq. 3's
+    moments are -k x_theta and -k x_phi, x the deviations from the rest direction's
+    angles in the segment's chart; a force F at the end has the moments l F_theta and
+    l sin(theta) F_phi (eq. 4), so F = -(k / l) (x_theta e_theta + x_phi / sin(theta)
+    e_phi). (The step re-centres a chart first where the segment is within 45 degrees
+    of a pole, and its spring then acts in the new chart; the thesis model keeps its
+    segments away from the poles, so that is rare.)
+    """
+    chart, theta, phi, trig, rest_dir, k_hinge, R = hinge
+    rx, ry, rz = rotate(R, rest_dir[s, i, 0], rest_dir[s, i, 1], rest_dir[s, i, 2])
+    # the chart's rows: x, y and the polar axis z
+    x0, x1, x2 = chart[s, i, 0, 0], chart[s, i, 0, 1], chart[s, i, 0, 2]
+    y0, y1, y2 = chart[s, i, 1, 0], chart[s, i, 1, 1], chart[s, i, 1, 2]
+    z0, z1, z2 = chart[s, i, 2, 0], chart[s, i, 2, 1], chart[s, i, 2, 2]
+    x_th = theta[s, i] - acos(min(1.0, max(-1.0, z0 * rx + z1 * ry + z2 * rz)))
+    x_ph = phi[s, i] - atan2(y0 * rx + y1 * ry + y2 * rz, x0 * rx + x1 * ry + x2 * rz)
+    while x_ph > pi:
+        x_ph -= 2.0 * pi
+    while x_ph <= -pi:
+        x_ph += 2.0 * pi
+    st, ct, sp, cp = trig[s, i, 0], trig[s, i, 1], trig[s, i, 2], trig[s, i, 3]
+    f_th = -k_hinge[s, i] * x_th / length[s, i]
+    f_ph = -k_hinge[s, i] * x_ph / (length[s, i] * max(st, 1e-3))
+    # along e_theta and e_phi (fig. 4.3, as anjyo._moments_of_trig)
+    a, b, c = f_th * ct * cp - f_ph * sp, f_th * ct * sp + f_ph * cp, -f_th * st
+    return a * x0 + b * y0 + c * z0, a * x1 + b * y1 + c * z1, a * x2 + b * y2 + c * z2
+
+
+@njit_without_refcounts
 def _contact_weight(d, r):
     """
     Return how much in contact a point at distance d from a centre is.
@@ -336,7 +370,8 @@ def reaction_constraint_forces(strands,
                                k_per_m,
                                c_per_m,
                                record_contacts,
-                               forces):
+                               forces,
+                               hinge=None):
     """
     Collision response by reaction constraints (eqs. 7-10) for vertices and segments.
 
@@ -355,6 +390,16 @@ def reaction_constraint_forces(strands,
     for a model that takes contacts implicitly; a model that does not read the record
     passes False and the kernel leaves it alone (clearing it touched every cache line of a
     record nine times the size of the forces, each step).
+
+    hinge (as hinge_end_force takes it) is for a model whose hinge springs are not among
+    the input forces (the thesis model's eq. 3 acts in its angular update; that model adds
+    the springs of 5.2 to the input forces before this call): the surface then bears only
+    what the input forces and the hinge spring press on it with together, and eq. 7 puts
+    back what it dropped beyond that. Eq. 7 alone dropped gravity's inward part while the
+    spring, turned against gravity to hold the style (gravity compensation), went on
+    lifting: a segment resting within CONTACT_SKIN of the scalp was thrown off it, fell
+    back, and did so for ever at 1/60 s (side_swept_long released at rest under a head
+    tilted by 0.25 rad: a cycle of three steps, 1.5 mm at the first vertex).
     """
     pos, vel, length = strands.pos, strands.vel, strands.length
     spheres, sphere_vel, masks = bodies.spheres, bodies.sphere_vel, bodies.masks
@@ -391,8 +436,22 @@ def reaction_constraint_forces(strands,
                     vy = vel[s, i + 1, 1] - sphere_vel[kk, 1]
                     vz = vel[s, i + 1, 2] - sphere_vel[kk, 2]
                     w = _contact_weight(d, r)
+                    if hinge is not None:
+                        # what presses on the surface, as a force at the end: the input
+                        # forces' moments about the start, and the spring's
+                        sx, sy, sz = hinge_end_force(s, i, length, hinge)
+                        pressing = -min(0.0, (0.5 * f_dist[s, i, 0] + f_end[s, i, 0] + sx) * nx
+                                        + (0.5 * f_dist[s, i, 1] + f_end[s, i, 1] + sy) * ny
+                                        + (0.5 * f_dist[s, i, 2] + f_end[s, i, 2] + sz) * nz)
                     load_mid = _remove_inward(f_dist[s, i], nx, ny, nz, w)
                     load = _remove_inward(f_end[s, i], nx, ny, nz, w) + k * max(r - d, 0.0)
+                    if hinge is not None:
+                        # eq. 7 bears at most that: the rest of what it dropped is put back
+                        excess = 0.5 * load_mid + load - k * max(r - d, 0.0) - pressing
+                        if excess > 0.0:
+                            f_end[s, i, 0] -= excess * nx
+                            f_end[s, i, 1] -= excess * ny
+                            f_end[s, i, 2] -= excess * nz
                     mag = k * max(r - d, 0.0) - w * c * (vx * nx + vy * ny + vz * nz)  # eq. 8
                     f_end[s, i, 0] += mag * nx
                     f_end[s, i, 1] += mag * ny
@@ -428,13 +487,20 @@ def reaction_constraint_forces(strands,
                 vy = (1 - tt) * vel[s, i, 1] + tt * vel[s, i + 1, 1] - sphere_vel[kk, 1]
                 vz = (1 - tt) * vel[s, i, 2] + tt * vel[s, i + 1, 2] - sphere_vel[kk, 2]
                 w = _contact_weight(dq, r)
-                mag = -w * min(fn, 0.0) + k * max(r - dq, 0.0) - w * c * (
+                borne = -w * min(fn, 0.0)
+                if hinge is not None:
+                    # at most what the input force and the hinge spring press on the
+                    # surface with together (see above); the spring's force at Q has its
+                    # moment: its force at the end over tt
+                    sx, sy, sz = hinge_end_force(s, i, length, hinge)
+                    borne = min(borne, max(0.0, -(fn + (sx * nx + sy * ny + sz * nz) / tt)))
+                mag = borne + k * max(r - dq, 0.0) - w * c * (
                     vx * nx + vy * ny + vz * nz)                               # eq. 10
                 f_end[s, i, 0] += tt * mag * nx
                 f_end[s, i, 1] += tt * mag * ny
                 f_end[s, i, 2] += tt * mag * nz
                 if record_contacts:
-                    load = max(0.0, -w * min(fn, 0.0) + k * max(r - dq, 0.0))
+                    load = max(0.0, borne + k * max(r - dq, 0.0))
                     _record_contact(contact, s, i, k if dq < r else 0.0, w * c, (nx, ny, nz),
                                     tt, kk, (load, 0.0))
                 contacts += 1

@@ -677,6 +677,8 @@ class HairSimulator:
                                                                    F.CONTACT_FIELDS))
             slots[..., F.CONTACT_K] = 0.0
             slots[..., F.CONTACT_C] = 0.0
+        if self.solver.springs_before_contacts:
+            walls = self._strip_springs_pass(strands, bodies, forces, settings)
         if settings.collisions:
             contacts = F.reaction_constraint_forces(
                 strands,
@@ -685,20 +687,27 @@ class HairSimulator:
                 settings.collision_damping,
                 self.solver.uses_contacts,
                 forces,
+                self.solver.contact_hinge(head),
             )
             c['kernel_calls'] += 1
-        if settings.inter_strip and len(self.pairs):
-            walls = F.strip_springs(
-                strands,
-                bodies.spheres[:settings.n_scalp],
-                self._strip_springs,
-                self._spring_constants,
-                forces,
-            )
-            c['kernel_calls'] += 1
+        if not self.solver.springs_before_contacts:
+            walls = self._strip_springs_pass(strands, bodies, forces, settings)
         segments = self.solver.step(self, strand_h, head)
         c['kernel_calls'] += 1
         return checks, contacts, walls, segments
+
+    def _strip_springs_pass(self, strands, bodies, forces, settings):
+        """Add the springs of thesis 5.2 to the forces; return the wall springs inserted."""
+        if not (settings.inter_strip and len(self.pairs)):
+            return 0
+        self.counters['kernel_calls'] += 1
+        return F.strip_springs(
+            strands,
+            bodies.spheres[:settings.n_scalp],
+            self._strip_springs,
+            self._spring_constants,
+            forces,
+        )
 
     # ----------------------------------------------------------------- outputs
     def strand_positions(self):

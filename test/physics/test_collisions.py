@@ -278,3 +278,86 @@ def test_a_segment_falling_into_a_crease_takes_no_energy_from_its_contacts(radiu
     assert sim.counters['contacts'] > 0
     rise = np.diff(energy).max()
     assert rise < 1e-3 * peak, (rise, peak)
+
+
+def _horizontal_segment_on_a_sphere(alpha, k, length=0.05):
+    """
+    One segment along +x whose end rests on top of a sphere (r = 0.1 at the origin).
+
+    Its hinge (eq. 3), k, has its rest turned up by alpha: the spring lifts the end with
+    a force k alpha / l (the segment lies on its chart's equator, phi = 0, with e_phi
+    straight up, so the moment -k (phi - alpha) is that of an upward force at the end).
+    Returns (strands, bodies, hinge).
+    """
+    end = np.array([0.0, 0.0, 0.1])
+    pos = np.array([[end - [length, 0.0, 0.0], end]])
+    strands = forces.Strands(pos=pos, pos_prev=pos.copy(), vel=np.zeros_like(pos),
+                             length=np.array([[length]]), mass=np.ones((1, 1)))
+    bodies = forces.Bodies(spheres=np.array([[0.0, 0.0, 0.0, 0.1]]),
+                           sphere_vel=np.zeros((1, 3)), masks=np.array([1], dtype=np.int64))
+    chart = np.array([[[[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]]]])  # x, y, pole
+    theta, phi = np.full((1, 1), np.pi / 2), np.zeros((1, 1))
+    trig = np.array([[[1.0, 0.0, 0.0, 1.0]]])            # sin, cos of theta; of phi
+    rest = np.array([[[np.cos(alpha), 0.0, np.sin(alpha)]]])
+    hinge = (chart, theta, phi, trig, rest, np.full((1, 1), k), np.eye(3))
+    return strands, bodies, hinge
+
+
+@pytest.mark.parametrize('lift_over_weight', [0.25, 0.5, 0.9, 1.1, 2.0])
+def test_the_surface_bears_what_the_forces_and_the_hinge_press_on_it_and_no_more(
+        lift_over_weight):
+    """
+    Eq. 7 with the thesis model's hinge spring counted: a segment resting on a sphere.
+
+    Its weight presses its end on the surface (w = 1: the end is on it), and its hinge
+    spring lifts it by a force of lift_over_weight times that. While the weight wins, the
+    surface bears the difference (in moments about the start: nothing left along the
+    normal); when the spring wins, the surface bears nothing and the forces are kept.
+    Without the hinge, eq. 7 removed the whole weight and the spring threw the end off.
+    """
+    weight = 0.02                        # N, end-equivalent: half the distributed force
+    length, k = 0.05, 1e-2
+    alpha = lift_over_weight * weight * length / k         # 0.025 to 0.2 rad
+    strands, bodies, hinge = _horizontal_segment_on_a_sphere(alpha, k, length)
+    lift = k * alpha / length
+    f_dist = np.array([[[0.003, 0.0, -2.0 * weight]]])             # gravity and a side push
+    f_end = np.zeros((1, 1, 3))
+    n = forces.reaction_constraint_forces(strands, bodies, 2.0, 0.0, False,
+                                          forces.Forces(f_dist=f_dist, f_end=f_end,
+                                                        contact=np.zeros((1, 1, 1))),
+                                          hinge)
+    assert n == 1
+    pressing = 0.5 * f_dist[0, 0] + f_end[0, 0]            # as moments about the start
+    assert pressing[0] == pytest.approx(0.5 * 0.003, abs=1e-15)          # along: kept
+    net_normal = pressing[2] + lift
+    assert net_normal == pytest.approx(max(0.0, lift - weight), abs=1e-12)
+    # the spring's force at the end has the moments of eq. 3 (independent of the above)
+    s = forces.hinge_end_force(0, 0, strands.length, hinge)
+    np.testing.assert_allclose(s, [0.0, 0.0, lift], atol=1e-15)
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_the_hinge_end_force_has_the_moments_of_eq_3(seed):
+    """Its moments by eq. 4 are -k times the deviations from the rest angles, any chart."""
+    from hair_sim.physics.solvers.anjyo import _moments_of_trig
+    rng = np.random.default_rng(seed)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    R, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    chart = q.T[None, None]                              # rows x, y and the polar axis
+    theta = rng.uniform(np.pi / 4, 3 * np.pi / 4)        # where the model keeps segments
+    phi = rng.uniform(-np.pi, np.pi)
+    rest_world = rng.normal(size=3)
+    rest_world /= np.linalg.norm(rest_world)
+    k, length = rng.uniform(1e-5, 1e-3), rng.uniform(0.01, 0.05)
+    hinge = (chart, np.full((1, 1), theta), np.full((1, 1), phi),
+             np.array([[[np.sin(theta), np.cos(theta), np.sin(phi), np.cos(phi)]]]),
+             (R.T @ rest_world)[None, None], np.full((1, 1), k), R)
+    f = forces.hinge_end_force(0, 0, np.full((1, 1), length), hinge)
+    C = tuple(chart[0, 0].ravel())
+    m_th, m_ph = _moments_of_trig(C, np.sin(theta), np.cos(theta), np.sin(phi), np.cos(phi),
+                                  length, (0.0, 0.0, 0.0), f)
+    in_chart = chart[0, 0] @ rest_world
+    x_th = theta - np.arccos(in_chart[2])
+    x_ph = (phi - np.arctan2(in_chart[1], in_chart[0]) + np.pi) % (2 * np.pi) - np.pi
+    assert m_th == pytest.approx(-k * x_th, rel=1e-9, abs=1e-15)
+    assert m_ph == pytest.approx(-k * x_ph, rel=1e-9, abs=1e-15)

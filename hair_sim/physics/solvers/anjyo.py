@@ -681,15 +681,22 @@ def thesis_substep(state,
     finite_difference_velocities(strands.pos, strands.pos_prev, h_prev, strands.vel)
     external_forces(strands, attach.root_acc, settings.gravity, wind, settings.wind_on,
                     settings.t, settings.drag_factor, settings.air_damping, True, forces)
-    contacts = 0
-    if settings.collisions:
-        # (the record of contacts is for a model that takes them implicitly: not this one)
-        contacts = reaction_constraint_forces(strands, bodies, settings.collision_stiffness,
-                                              settings.collision_damping, False, forces)
     walls = 0
     if settings.inter_strip and springs[0].pairs.shape[0] > 0:
         walls = strip_springs(strands, bodies.spheres[:settings.n_scalp], springs[0],
                               springs[1], forces)
+    contacts = 0
+    if settings.collisions:
+        # (the record of contacts is for a model that takes them implicitly: not this one;
+        # the hinge springs as AnjyoSolver.contact_hinge gives them)
+        contacts = reaction_constraint_forces(strands,
+                                              bodies,
+                                              settings.collision_stiffness,
+                                              settings.collision_damping,
+                                              False,
+                                              forces,
+                                              (state.chart, state.theta, state.phi, state.trig,
+                                               state.rest_dir, state.k_hinge, head.R))
     segments = integrate_strands(state, strands, forces, head.R, attach.roots, bodies,
                                  settings.collisions, damping, h, integrator, stats)
     return checks, contacts, walls, segments
@@ -743,6 +750,7 @@ class AnjyoSolver:
     holds_modeled_walls = False     # type-2 springs act within d2, as in thesis 5.2
     retries_diverged_steps = False  # MAX_TURN bounds a step's turn; nothing saved per step
     fused = True                    # a whole step is one kernel call (thesis_substep)
+    springs_before_contacts = True  # eq. 7 bears what the springs of 5.2 press with too
     uses_contacts = False        # the contact record (implicit contacts) is not read
     forces_at_mid_step = False   # eqs. 4-6 take the forces where the step starts
     contact_damping_rate = 0.0   # eq. 8's c is collision_damping alone (explicit)
@@ -775,6 +783,11 @@ class AnjyoSolver:
                           phi_prev=self.phi_prev, trig=self.trig, chart=self.chart,
                           rest_dir=self.rest_dir, inv_inertia=self.inv_inertia,
                           k_hinge=self.k_hinge, packed=self.packed, turned=self.turned)
+
+    def contact_hinge(self, head):
+        """Return the hinge springs (eq. 3) as reaction_constraint_forces takes them."""
+        return (self.chart, self.theta, self.phi, self.trig, self.rest_dir, self.k_hinge,
+                head.R)
 
     def place(self, sim, world_dir):
         """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""

@@ -1410,6 +1410,7 @@ class ArticulatedSolver:
     forces_at_mid_step = True    # Stormer-Verlet: the forces at x + (h / 2) v
     contact_damping_rate = CONTACT_DAMPING_RATE   # 1/s, times the mass per metre
     fused = False                # the shared kernels one by one, then the chain
+    springs_before_contacts = False  # contacts first (the chain takes them implicitly)
 
     def __init__(self, sim):
         n_s, n_seg = sim.length.shape
@@ -1467,6 +1468,11 @@ class ArticulatedSolver:
         return ChainState(R=self.R, omega=self.omega, alpha=self.alpha, rest_rel=self.rest_rel,
                           k=self.k, d=self.d, inertia_axial=self.inertia_axial,
                           offset=self.offset, air=self.air, friction=self.friction)
+
+    @staticmethod
+    def contact_hinge(head):
+        """Return None: the joint springs act in the chain, with the contacts (implicit)."""
+        return None
 
     def place(self, sim, world_dir):
         """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""
