@@ -361,3 +361,33 @@ def test_the_hinge_end_force_has_the_moments_of_eq_3(seed):
     x_ph = (phi - np.arctan2(in_chart[1], in_chart[0]) + np.pi) % (2 * np.pi) - np.pi
     assert m_th == pytest.approx(-k * x_th, rel=1e-9, abs=1e-15)
     assert m_ph == pytest.approx(-k * x_ph, rel=1e-9, abs=1e-15)
+
+
+@pytest.mark.parametrize('lift_over_weight', [0.25, 0.5, 0.9, 1.1, 2.0])
+def test_a_chord_on_a_sphere_bears_what_the_forces_and_the_hinge_press_on_it(
+        lift_over_weight):
+    """
+    Eq. 10, the same: a segment across the top of a sphere, touching it at its middle Q.
+
+    Its ends are clear of the sphere; at Q (tt = 1/2) the input force interpolated from
+    the ends presses with its weight W, and the hinge spring's force at the end, k alpha
+    / l, lifts Q with twice that (the same moment at half the lever). The surface bears
+    W less the lift while the weight wins, and nothing when the spring does.
+    """
+    weight, length, k = 0.02, 0.1, 1e-2
+    lift_at_q = lift_over_weight * weight
+    alpha = 0.5 * lift_at_q * length / k
+    strands, bodies, hinge = _horizontal_segment_on_a_sphere(alpha, k, length)
+    pos = strands.pos
+    pos[0, :, 0] += 0.5 * length                 # across the top: x from -l/2 to l/2
+    assert np.linalg.norm(pos[0, 1]) > 0.1 + forces.CONTACT_SKIN     # the end is clear
+    f_dist = np.array([[[0.0, 0.0, -2.0 * weight]]])   # at Q: half of it, from the end
+    f_end = np.zeros((1, 1, 3))
+    n = forces.reaction_constraint_forces(strands, bodies, 2.0, 0.0, False,
+                                          forces.Forces(f_dist=f_dist, f_end=f_end,
+                                                        contact=np.zeros((1, 1, 1))),
+                                          hinge)
+    assert n == 1
+    borne = f_end[0, 0, 2] / 0.5                  # applied at Q, moved to the end by tt
+    assert borne == pytest.approx(max(0.0, weight - lift_at_q), abs=1e-12)
+    np.testing.assert_array_equal(f_end[0, 0, :2], [0.0, 0.0])
