@@ -303,6 +303,15 @@ def _horizontal_segment_on_a_sphere(alpha, k, length=0.05):
     return strands, bodies, hinge
 
 
+def _react_with_hinge(strands, bodies, input_forces, hinge):
+    """Apply eqs. 7-10 (k = 2, no damping, no record) with the hinge; return the contacts."""
+    f_dist, f_end = input_forces
+    return forces.reaction_constraint_forces(strands, bodies, 2.0, 0.0, False,
+                                             forces.Forces(f_dist=f_dist, f_end=f_end,
+                                                           contact=np.zeros((1, 1, 1))),
+                                             hinge)
+
+
 @pytest.mark.parametrize('lift_over_weight', [0.25, 0.5, 0.9, 1.1, 2.0])
 def test_the_surface_bears_what_the_forces_and_the_hinge_press_on_it_and_no_more(
         lift_over_weight):
@@ -322,10 +331,7 @@ def test_the_surface_bears_what_the_forces_and_the_hinge_press_on_it_and_no_more
     lift = k * alpha / length
     f_dist = np.array([[[0.003, 0.0, -2.0 * weight]]])             # gravity and a side push
     f_end = np.zeros((1, 1, 3))
-    n = forces.reaction_constraint_forces(strands, bodies, 2.0, 0.0, False,
-                                          forces.Forces(f_dist=f_dist, f_end=f_end,
-                                                        contact=np.zeros((1, 1, 1))),
-                                          hinge)
+    n = _react_with_hinge(strands, bodies, (f_dist, f_end), hinge)
     assert n == 1
     pressing = 0.5 * f_dist[0, 0] + f_end[0, 0]            # as moments about the start
     assert pressing[0] == pytest.approx(0.5 * 0.003, abs=1e-15)          # along: kept
@@ -383,10 +389,7 @@ def test_a_chord_on_a_sphere_bears_what_the_forces_and_the_hinge_press_on_it(
     assert np.linalg.norm(pos[0, 1]) > 0.1 + forces.CONTACT_SKIN     # the end is clear
     f_dist = np.array([[[0.0, 0.0, -2.0 * weight]]])   # at Q: half of it, from the end
     f_end = np.zeros((1, 1, 3))
-    n = forces.reaction_constraint_forces(strands, bodies, 2.0, 0.0, False,
-                                          forces.Forces(f_dist=f_dist, f_end=f_end,
-                                                        contact=np.zeros((1, 1, 1))),
-                                          hinge)
+    n = _react_with_hinge(strands, bodies, (f_dist, f_end), hinge)
     assert n == 1
     borne = f_end[0, 0, 2] / 0.5                  # applied at Q, moved to the end by tt
     assert borne == pytest.approx(max(0.0, weight - lift_at_q), abs=1e-12)
