@@ -5,6 +5,7 @@ from dataclasses import dataclass
 from numba import njit
 import numpy as np
 
+from hair_sim.kernels import njit_without_refcounts
 from hair_sim.render import culling, ushape
 from hair_sim.render.tessellate import make_lod
 from hair_sim.render.texture import texture_png
@@ -12,6 +13,9 @@ from hair_sim.render.texture import texture_png
 DELTA = 5e-4            # m: bisection threshold of thesis 3.2
 MAX_DISTANCE = 0.04     # m: a projection farther than this from its vertex is "too far"
 FIX_LENGTH = 0.006      # m: C, the length of a fixed-up projection AA' (fig. 3.4 B, D)
+# culling forgets the strips it draws unproven when the eye, seen from the head, moves more
+# than this share of its distance between two calls (a new view, not a frame's motion)
+VIEW_JUMP = 0.05
 
 
 @dataclass
@@ -85,23 +89,98 @@ def culled_triangles(local, strips, verts_per_strip):
     return out
 
 
-@njit(cache=True)
-def tessellate_visible_strips(pos, strips, lod, view, scratch, visible, grid):
+@njit_without_refcounts
+def _world_projection(head, R, p, scratch):
     """
-    Cull and tessellate in one call; return how many strips may be seen.
+    Return the Projection (world) of a head under pose (R, p), written into scratch.
 
-    The strips that may be seen from the eye go into visible[:count]
-    (culling.visible_strips), their grids into grid. strips is (strip_strands, sigma), lod
-    (along, across), view (projection, eye, occluding spheres). One call from Python
-    instead of two: a call's arguments cost about 2 us to pass, as much as a strip's
-    U-shape.
+    head is (scalp spheres, occluding spheres, projection centre (head frame), rs, delta,
+    max_dist, fix_len); scratch (scalp, occluding spheres, centre, world; the last eye).
     """
-    strip_strands, sigma = strips
-    projection, eye, occ = view
-    count = culling.visible_strips(pos, strip_strands, sigma, projection, eye, occ, scratch,
-                                   visible)
-    ushape.tessellate_strips(pos, strip_strands, visible[:count], lod[0], lod[1], grid)
+    scalp_head, _, centre_head, rs, delta, max_dist, fix_len = head
+    scalp, _, centre, _ = scratch
+    _spheres_to_world(scalp_head, R, p, scalp)
+    for a in range(3):
+        centre[a] = R[a, 0] * centre_head[0] + R[a, 1] * centre_head[1] + \
+            R[a, 2] * centre_head[2] + p[a]
+    return ushape.Projection(scalp, centre, rs, delta, max_dist, fix_len)
+
+
+@njit_without_refcounts
+def _spheres_to_world(spheres, R, p, out):
+    """Write spheres (n, 4) (head frame) moved by the pose (R, p) into out."""
+    for k in range(spheres.shape[0]):
+        for a in range(3):
+            out[k, a] = R[a, 0] * spheres[k, 0] + R[a, 1] * spheres[k, 1] + \
+                R[a, 2] * spheres[k, 2] + p[a]
+        out[k, 3] = spheres[k, 3]
+
+
+@njit_without_refcounts
+def seen_strips(pos, strips, head, pose, scratch, visible):
+    """
+    Write the strips that may be seen from the eye into visible[:count]; return count.
+
+    The arguments are mesh_vertices' (pose (R, p, eye)): culling.visible_strips with the
+    head's spheres moved into the world first. What culling remembers from call to call
+    (proof_rest, the strips drawn unproven) belongs to a view: when the eye, seen from the
+    head, moved more than VIEW_JUMP of its distance since the last call, it is forgotten.
+    """
+    R, p, eye = pose
+    world, cull_scratch, _ = scratch
+    last_eye = world[3]                          # the eye in the head frame, last call
+    ex, ey, ez = eye[0] - p[0], eye[1] - p[1], eye[2] - p[2]
+    hx = R[0, 0] * ex + R[1, 0] * ey + R[2, 0] * ez
+    hy = R[0, 1] * ex + R[1, 1] * ey + R[2, 1] * ez
+    hz = R[0, 2] * ex + R[1, 2] * ey + R[2, 2] * ez
+    dx, dy, dz = hx - last_eye[0], hy - last_eye[1], hz - last_eye[2]
+    if dx * dx + dy * dy + dz * dz > VIEW_JUMP * VIEW_JUMP * (hx * hx + hy * hy + hz * hz):
+        proof_rest = strips[2]
+        for s in range(proof_rest.shape[0]):
+            proof_rest[s] = 0
+    last_eye[0], last_eye[1], last_eye[2] = hx, hy, hz
+    projection = _world_projection(head, R, p, world)
+    _spheres_to_world(head[1], R, p, world[1])
+    return culling.visible_strips(pos, strips, projection, (eye, world[1]), cull_scratch,
+                                  visible)
+
+
+@njit_without_refcounts
+def mesh_vertices(pos, strips, lod, head, pose, scratch, out):
+    """
+    Write the U-shape vertices of the strips drawn (all, or those seen); return how many.
+
+    One call from Python a frame: a call's bundled arguments cost about 1 us to pass,
+    as much as a strip's U-shape. strips is (strip_strands, sigma, proof_rest), lod (along,
+    across), head (scalp spheres, occluding spheres shrunk a shade, projection centre, all
+    head frame, then rs, delta, max_dist, fix_len), pose (R, p, eye, cull): with cull only
+    the strips that may be seen from the eye (world) are drawn (culling.visible_strips).
+    scratch is (world (scalp, occluding spheres, centre; the eye in the head frame last
+    call), culling's, ushape's); out
+    (visible strips, grids, U-shape vertices, flags), the drawn strips first.
+    """
+    R, p, eye, cull = pose
+    along, across = lod
+    strip_strands, sigma = strips[0], strips[1]
+    world, cull_scratch, wall_scratch = scratch
+    visible, grid, vertices, flags = out
+    if cull:
+        count = seen_strips(pos, strips, head, (R, p, eye), scratch, visible)
+    else:
+        count = strip_strands.shape[0]
+        for s in range(count):
+            visible[s] = s
+    projection = _world_projection(head, R, p, world)
+    drawn = visible[:count]
+    ushape.tessellate_strips(pos, strip_strands, drawn, along, across, grid)
+    ushape.ushape(grid[:count], sigma, drawn, projection, vertices[:count], flags[:count],
+                  wall_scratch)
     return count
+
+
+def _f64(a):
+    """Return a as a C-contiguous float64 array (no copy when it is one)."""
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 class HairRenderer:
@@ -140,11 +219,22 @@ class HairRenderer:
         self._grid = np.zeros((self.n_strips, self.lod.columns, self.lod.rows, 3))
         self._out = np.zeros((self.n_strips, self.lod.verts_per_strip, 3))
         self._flags = np.zeros((self.n_strips, 2, self.lod.rows), dtype=np.int64)
-        self._vis = np.zeros(self.n_strips, dtype=np.int64)   # visible strips, culling writes
+        self._vis = np.zeros(self.n_strips, dtype=np.int64)   # drawn strips, culling writes
+        self._proof_rest = np.zeros(self.n_strips, dtype=np.int64)   # culling's, kept
         self._culled = None             # (strips as bytes, their triangles), last culled mesh
-        self._wall_scratch = (np.zeros_like(rest), np.zeros_like(rest))   # reach, bottoms
-        self._collision = head.collision      # (head frame; stacked once, not every frame)
-        self._walls = ushape.wall_scratch(len(head.scalp))    # ushape's scratch
+        # the head's spheres in its frame, and their world copies the kernels write
+        occ = np.array(head.collision, dtype=np.float64)
+        occ[:, 3] -= 1e-4                       # a shade smaller: culling stays conservative
+        scalp = np.ascontiguousarray(head.scalp, dtype=np.float64)
+        rs = 0.0 if point_centre else float(head.projection_sphere[3])
+        self._head = (scalp, occ,
+                      np.ascontiguousarray(head.projection_sphere[:3], dtype=np.float64),
+                      rs, float(delta), float(max_distance), float(fix_length))
+        self._scratch = ((np.zeros_like(scalp), np.zeros_like(occ), np.zeros(3),
+                          np.zeros(3)),
+                         culling.culling_scratch(rest.shape, len(occ), len(scalp)),
+                         ushape.wall_scratch(len(scalp)))
+        self._no_eye = np.zeros(3)
         self._last_key = None
         self._last = None
 
@@ -179,30 +269,23 @@ class HairRenderer:
             self._last_key = key
         return self._last
 
-    def _world(self, R, p):
-        scalp = self.head.scalp.copy()
-        scalp[:, :3] = scalp[:, :3] @ R.T + p
-        occ = self._collision.copy()
-        occ[:, :3] = occ[:, :3] @ R.T + p
-        occ[:, 3] -= 1e-4                      # a shade smaller: culling stays conservative
-        centre = self.head.projection_sphere[:3] @ R.T + p
-        rs = 0.0 if self.point_centre else float(self.head.projection_sphere[3])
-        projection = ushape.Projection(scalp=np.ascontiguousarray(scalp), centre=centre, rs=rs,
-                                       delta=self.delta, max_dist=self.max_distance,
-                                       fix_len=self.fix_length)
-        return projection, np.ascontiguousarray(occ)
+    def projection(self, R, p):
+        """Return the U-shape's Projection (world) under head pose (R, p) (a copy)."""
+        scalp_head, _, centre_head, rs, delta, max_dist, fix_len = self._head
+        R, p = _f64(R), _f64(p)
+        scalp = np.zeros_like(scalp_head)
+        _spheres_to_world(scalp_head, R, p, scalp)
+        return ushape.Projection(scalp=scalp, centre=R @ centre_head + p, rs=rs, delta=delta,
+                                 max_dist=max_dist, fix_len=fix_len)
 
-    def visible(self, pos, R, p, viewpoint, world=None):
+    def visible(self, pos, R, p, viewpoint):
         """Return the indices of the strips that may be seen from `viewpoint` (world)."""
-        projection, occ = self._world(R, p) if world is None else world
-        count = culling.visible_strips(
+        count = seen_strips(
             pos,
-            self.strip_strands,
-            self.sigma,
-            projection,
-            np.asarray(viewpoint, dtype=np.float64),
-            occ,
-            self._wall_scratch,
+            (self.strip_strands, self.sigma, self._proof_rest),
+            self._head,
+            (_f64(R), _f64(p), _f64(viewpoint)),
+            self._scratch,
             self._vis,
         )
         return self._vis[:count].copy()
@@ -213,36 +296,19 @@ class HairRenderer:
 
         walls=False leaves out the two projected meshes: plain strips (thesis fig. 3.8a).
         """
-        world = self._world(R, p)
-        projection = world[0]
-        if viewpoint is None:
-            sel = self._all
-            k = len(sel)
-            ushape.tessellate_strips(pos, self.strip_strands, sel, self.lod.along,
-                                     self.lod.across, self._grid)
-        else:
-            k = tessellate_visible_strips(
-                pos,
-                (self.strip_strands, self.sigma),
-                (self.lod.along, self.lod.across),
-                (projection, np.asarray(viewpoint, dtype=np.float64), world[1]),
-                self._wall_scratch,
-                self._vis,
-                self._grid,
-            )
-            sel = self._vis[:k]
-        grid = self._grid[:k]
+        k = mesh_vertices(
+            pos,
+            (self.strip_strands, self.sigma, self._proof_rest),
+            (self.lod.along, self.lod.across),
+            self._head,
+            (_f64(R), _f64(p), self._no_eye if viewpoint is None else _f64(viewpoint),
+             viewpoint is not None),
+            self._scratch,
+            (self._vis, self._grid, self._out, self._flags),
+        )
+        sel = self._all if viewpoint is None else self._vis[:k]
         out = self._out[:k]
         flags = self._flags[:k]
-        ushape.ushape(
-            grid,
-            self.sigma,
-            sel,
-            projection,
-            out,
-            flags,
-            self._walls,
-        )
         nv, nt = self.lod.verts_per_strip, self.lod.tris_per_strip
         if viewpoint is None:                  # every strip: the topology's arrays
             topology = self.topology()

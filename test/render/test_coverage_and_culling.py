@@ -75,6 +75,45 @@ def test_culling_of_every_style_never_drops_a_strip_a_ray_hits(name):
     assert culled_any > 0
 
 
+def test_culling_remembers_failed_proofs_only_to_draw_more_and_only_for_a_while():
+    """
+    Culling's memory of failed proofs only adds strips, for at most PROOF_REST calls.
+
+    Frame after frame of a head shake, culling with its memory draws every strip culling
+    without it (a fresh renderer each frame) draws, and a strip it draws unproven stays so
+    at most PROOF_REST calls; a new view forgets it (the next call draws what a fresh one
+    does).
+    """
+    from hair_sim.render.culling import PROOF_REST
+    sim = HairSimulator(load_hairstyle(paths.shipped_style('thesis_long')))
+    kept = HairRenderer.for_simulator(sim)
+    eye = [0.8, 0.0, 0.0]
+    unproven = {}                                # strip: calls in a row drawn beyond fresh
+    longest = 0
+    for i in range(150):
+        t = (i + 1) * DEFAULT_DT
+        yaw = 0.6 * np.sin(2 * np.pi * 1.5 * t)
+        sim.set_head_pose(t, [0.0, 0.0, 0.02 * np.sin(2 * np.pi * t)],
+                          [0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)])
+        sim.step(DEFAULT_DT)
+        R, p = sim.head_pose
+        mine = set(kept.visible(sim.pos, R, p, eye).tolist())
+        fresh = set(HairRenderer.for_simulator(sim).visible(sim.pos, R, p, eye).tolist())
+        assert fresh <= mine, (i, fresh - mine)
+        unproven = {s: unproven.get(s, 0) + 1 for s in mine - fresh}
+        longest = max([longest] + list(unproven.values()))
+    assert 0 < longest <= PROOF_REST                 # it remembered, and not for longer
+    R, p = sim.head_pose
+    kept.visible(sim.pos, R, p, eye)
+    rested = set(np.flatnonzero(kept._proof_rest).tolist())    # drawn unproven next call
+    for other in 0.8 * fibonacci_sphere(32):                   # a view that hides one
+        fresh = HairRenderer.for_simulator(sim).visible(sim.pos, R, p, other)
+        if rested - set(fresh.tolist()):
+            break
+    assert rested - set(fresh.tolist()), rested                # (the check is not vacuous)
+    assert np.array_equal(kept.visible(sim.pos, R, p, other), fresh)
+
+
 def test_wall_bounds_culling_uses_hold_the_projected_walls():
     """
     Culling's bounds on a wall hold the wall bottoms the projection gives.
@@ -91,7 +130,7 @@ def test_wall_bounds_culling_uses_hold_the_projected_walls():
         sim = _shaken(name)
         renderer = HairRenderer.for_simulator(sim)
         R, p = sim.head_pose
-        projection, _ = renderer._world(R, p)
+        projection = renderer.projection(R, p)
         pos = sim.pos
         V = pos.shape[1]
         bottoms, reach = np.zeros_like(pos), np.zeros_like(pos)
