@@ -44,15 +44,20 @@ def test_culling_never_drops_a_strip_a_ray_hits(settled, renderer):
     assert culled_any > 0
 
 
+def _shake_step(sim, i):
+    """Step frame i of a head shake (yaw 0.6 rad at 1.5 Hz, bob 2 cm at 1 Hz)."""
+    t = (i + 1) * DEFAULT_DT
+    yaw = 0.6 * np.sin(2 * np.pi * 1.5 * t)
+    sim.set_head_pose(t, [0.0, 0.0, 0.02 * np.sin(2 * np.pi * t)],
+                      [0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)])
+    sim.step(DEFAULT_DT)
+
+
 def _shaken(name):
     """Return a simulator of shipped style `name` after a head shake (strands off rest)."""
     sim = HairSimulator(load_hairstyle(paths.shipped_style(name)))
     for i in range(90):
-        t = (i + 1) * DEFAULT_DT
-        yaw = 0.6 * np.sin(2 * np.pi * 1.5 * t)
-        sim.set_head_pose(t, [0.0, 0.0, 0.02 * np.sin(2 * np.pi * t)],
-                          [0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)])
-        sim.step(DEFAULT_DT)
+        _shake_step(sim, i)
     return sim
 
 
@@ -91,11 +96,7 @@ def test_culling_remembers_failed_proofs_only_to_draw_more_and_only_for_a_while(
     unproven = {}                                # strip: calls in a row drawn beyond fresh
     longest = 0
     for i in range(150):
-        t = (i + 1) * DEFAULT_DT
-        yaw = 0.6 * np.sin(2 * np.pi * 1.5 * t)
-        sim.set_head_pose(t, [0.0, 0.0, 0.02 * np.sin(2 * np.pi * t)],
-                          [0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)])
-        sim.step(DEFAULT_DT)
+        _shake_step(sim, i)
         R, p = sim.head_pose
         mine = set(kept.visible(sim.pos, R, p, eye).tolist())
         fresh = set(HairRenderer.for_simulator(sim).visible(sim.pos, R, p, eye).tolist())
