@@ -643,15 +643,20 @@ def _end_cone(sx, sy, sz, r, seg_len, margin):
 
 
 @njit_without_refcounts
-def guard_segment(start, end, seg_len, spheres, mask, margin=GUARD_MARGIN):
+def guard_segment(start, end, seg_len, spheres, mask, margin=GUARD_MARGIN,
+                  sag_by_height=False):
     """
     Position guard: turn the segment p->e (length l) so no vertex ends inside a sphere.
 
     The penalty force of eq. 8 must stay soft for the explicit force term, so a fast
     vertex can still cross a sphere's surface within one step; this moves the end vertex
-    (or the segment's deepest point) radially out to `margin` outside the sphere by
-    turning the segment about its start (both models pass GUARD_LIFT). Spheres that
-    contain the start are left alone. Returns the
+    radially out to `margin` outside the sphere (both models pass GUARD_LIFT), or the
+    segment's deepest point to within its chord allowance (SEGMENT_TOLERANCE, plus the
+    sag of a chord resting on the sphere), by turning the segment about its start. The
+    sag fades over the contact skin with the start's height (the thesis model), or with
+    sag_by_height, mm for mm with the height of the lower end (the articulated
+    model: see articulated.SAG_BY_HEIGHT). Spheres that contain the start are left
+    alone. Returns the
     new end point and whether anything moved.
     """
     px, py, pz = start
@@ -710,8 +715,15 @@ def guard_segment(start, end, seg_len, spheres, mask, margin=GUARD_MARGIN):
                         continue
                     dq = sqrt(dq2)
                     ds = sqrt(sx * sx + sy * sy + sz * sz)
-                    allow = SEGMENT_TOLERANCE + seg_len * seg_len / (8.0 * r) * min(
-                        1.0, max(0.0, (r + CONTACT_SKIN - ds) / CONTACT_SKIN))
+                    sag = seg_len * seg_len / (8.0 * r)
+                    if sag_by_height:
+                        # the sag of a chord whose lower end is that high: a chain
+                        # resting on the sphere (both ends within the sag) is left alone
+                        low = min(ds, sqrt(d2)) - r
+                        allow = SEGMENT_TOLERANCE + max(0.0, sag - max(low, 0.0))
+                    else:
+                        allow = SEGMENT_TOLERANCE + sag * min(
+                            1.0, max(0.0, (r + CONTACT_SKIN - ds) / CONTACT_SKIN))
                     if dq < r - allow:
                         f = (r - allow + 1e-6) / max(dq, 1e-12)
                         # where the segment's point at tt must go, seen from p

@@ -143,12 +143,27 @@ CONTACT_DAMPING_RATE = 200.0
 # IMPULSE_SWEEPS times; the same for the contacts before the drift (_speculative_contacts).
 IMPULSE_SWEEPS = 32
 IMPULSE_TOLERANCE = 1e-7
+# The guard's chord allowance (forces.guard_segment): a segment whose inner point dips into
+# a sphere deeper than SEGMENT_TOLERANCE plus the sag of a chord resting on it is turned
+# out. The thesis model fades that sag over the 1 mm contact skin with the start's height;
+# a segment longer than sqrt(8 r 1 mm) (2.4 cm on a 7.5 cm scalp sphere: a sag over 1 mm)
+# then loses allowance faster than its start rises, so a chain at rest on the head, its
+# vertices a fraction of a mm up, had chords the guard turned out every step: each lifted
+# end took allowance from the next segment, gravity pulled them back, a ratchet that slid
+# strands over the head. After the
+# stress bench's gale (thesis_long, 1/60 s, contact_friction 0.3) it turned 27 segments
+# out every step for seconds, tips kept 18-21 mm/s that the guard undid and slid 1.9 mm/s,
+# the kinetic energy stayed at 5.9e-7 J and the hair did not sleep in 4 s. Here the sag
+# fades mm for mm with the height of the segment's lower end, so a resting chord is left
+# alone (a flying segment still gets SEGMENT_TOLERANCE); the gale's hair then sleeps 3.4 s
+# after the wind stops.
+SAG_BY_HEIGHT = True
 
 # air: the rate (1/s) of the drag -air m v on every segment's centre that the shared forces
 # apply explicitly at the start of the step; the chain adds its implicit half (see below)
 ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', 'd',
                                        'inertia_axial',
-                                       'offset', 'air', 'friction'])
+                                       'offset', 'air', 'friction', 'sag_by_height'])
 # step_chains' scratch (chain_scratch): per-chain arrays reused for every strand and step
 ChainScratch = namedtuple('ChainScratch', ['Acc', 'Bcc', 'Mcc', 'pang', 'plin', 'Dinv', 'U_A',
                                            'U_B', 'u', 'alpha', 'wm', 'theta', 'J', 'B', 'M',
@@ -1106,7 +1121,7 @@ def step_chains(state,
             ez = pz + seg * Rnew[2, 2]
             if mask != 0:
                 gx, gy, gz, moved = guard_segment((px, py, pz), (ex, ey, ez), seg, spheres, mask,
-                                                  GUARD_LIFT)
+                                                  GUARD_LIFT, state.sag_by_height)
                 if moved:
                     # turn the rod minimally onto the guarded direction
                     ox, oy, oz = Rnew[0, 2], Rnew[1, 2], Rnew[2, 2]
@@ -1438,6 +1453,7 @@ class ArticulatedSolver:
         self.inertia_axial = np.ascontiguousarray(0.5 * sim.mass * p.bundle_radius ** 2)
         self.air = self.air_damping_rate(p)
         self.friction = p.contact_friction
+        self.sag_by_height = SAG_BY_HEIGHT
         if p.gravity_compensation:
             offset = sag_free_offsets(self.modeled, sim.length, sim.mass, self.k,
                                       [0.0, 0.0, -p.gravity])
@@ -1467,7 +1483,8 @@ class ArticulatedSolver:
         """Return the kernel's view of the arrays, shared and not copied."""
         return ChainState(R=self.R, omega=self.omega, alpha=self.alpha, rest_rel=self.rest_rel,
                           k=self.k, d=self.d, inertia_axial=self.inertia_axial,
-                          offset=self.offset, air=self.air, friction=self.friction)
+                          offset=self.offset, air=self.air, friction=self.friction,
+                          sag_by_height=self.sag_by_height)
 
     @staticmethod
     def contact_hinge(head):
