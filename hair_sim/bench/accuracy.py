@@ -124,6 +124,12 @@ def _bare_records(scenario, rest, start, refs, dts, duration, scored=slice(None)
     root = rest[0, 0]
     out = []
     for model, integ in VARIANTS:
+        # compile first (not timed): with an empty numba cache the first dt's cost was
+        # 80 times the next one's
+        sim = _bare(rest, model, integ)
+        sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+        sim.set_directions(start)
+        _run_sampled(sim, max(dts), 3 * max(dts), max(dts))
         for dt in progress(dts, '%s %s %s' % (scenario, model, integ)):
             sim = _bare(rest, model, integ)
             sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
