@@ -149,14 +149,14 @@ IMPULSE_TOLERANCE = 1e-7
 # a segment longer than sqrt(8 r 1 mm) (2.4 cm on a 7.5 cm scalp sphere: a sag over 1 mm)
 # then loses allowance faster than its start rises, so a chain at rest on the head, its
 # vertices a fraction of a mm up, had chords the guard turned out every step: each lifted
-# end took allowance from the next segment, gravity pulled them back, a ratchet that slid
-# strands over the head. After the
-# stress bench's gale (thesis_long, 1/60 s, contact_friction 0.3) it turned 27 segments
-# out every step for seconds, tips kept 18-21 mm/s that the guard undid and slid 1.9 mm/s,
-# the kinetic energy stayed at 5.9e-7 J and the hair did not sleep in 4 s. Here the sag
-# fades mm for mm with the height of the segment's lower end, so a resting chord is left
-# alone (a flying segment still gets SEGMENT_TOLERANCE); the gale's hair then sleeps 3.4 s
-# after the wind stops.
+# end took allowance from the next segment and gravity pulled them back, a ratchet that
+# slid strands over the head. After the stress bench's gale (thesis_long, 1/60 s, with
+# contact_friction 0.3) it turned 27 segments out every step for seconds, tips kept
+# 18-21 mm/s that the guard undid and slid 1.9 mm/s, 5.9e-7 J of motion stayed, and the
+# hair slept only 5.65 s after the wind stopped. Here the sag fades mm for mm with the
+# height of the segment's lower end, so a resting chord is left alone (a flying segment
+# still gets SEGMENT_TOLERANCE): the same run sleeps after 3.4 s (frictionless, 8.2 s:
+# strands slide back round the head).
 SAG_BY_HEIGHT = True
 
 # air: the rate (1/s) of the drag -air m v on every segment's centre that the shared forces
