@@ -123,18 +123,20 @@ def _bare_records(scenario, rest, start, refs, dts, duration, scored=slice(None)
     """
     root = rest[0, 0]
     out = []
-    for model, integ in VARIANTS:
-        # compile first (not timed): with an empty numba cache the first dt's cost was
-        # 84 times its cost with the kernels compiled
+
+    def released(model, integ):
         sim = _bare(rest, model, integ)
         sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
         sim.set_directions(start)
-        _run_sampled(sim, max(dts), 3 * max(dts), max(dts))
+        return sim
+
+    for model, integ in VARIANTS:
+        # compile first (not timed): with an empty numba cache the first dt's cost was
+        # 84 times its cost with the kernels compiled
+        _run_sampled(released(model, integ), max(dts), 3 * max(dts), max(dts))
         for dt in progress(dts, '%s %s %s' % (scenario, model, integ)):
-            sim = _bare(rest, model, integ)
-            sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
-            sim.set_directions(start)
-            (times, pos, ok), cost = cpu_time(_run_sampled, sim, dt, duration, dt)
+            (times, pos, ok), cost = cpu_time(_run_sampled, released(model, integ), dt,
+                                              duration, dt)
             # a run that tripped the step guard is scored (and marked unstable); one that
             # diverged has no positions to score
             complete = len(times) == int(round(duration / dt)) + 1

@@ -122,9 +122,21 @@ def seen_strips(pos, strips, head, pose, scratch, visible):
     Write the strips that may be seen from the eye into visible[:count]; return count.
 
     The arguments are mesh_vertices' (pose (R, p, eye)): culling.visible_strips with the
-    head's spheres moved into the world first. What culling remembers from call to call
-    (proof_rest, the strips drawn unproven) belongs to a view: when the eye, seen from the
-    head, moved more than VIEW_JUMP of its distance since the last call, it is forgotten.
+    head's spheres moved into the world first (_seen_strips).
+    """
+    R, p = pose[0], pose[1]
+    return _seen_strips(pos, strips, _world_projection(head, R, p, scratch[0]), head[1],
+                        pose, scratch, visible)
+
+
+@njit_without_refcounts
+def _seen_strips(pos, strips, projection, occ_head, pose, scratch, visible):
+    """
+    seen_strips, given the world Projection; occ_head the occluding spheres (head frame).
+
+    What culling remembers from call to call (proof_rest, the strips drawn unproven)
+    belongs to a view: when the eye, seen from the head, moved more than VIEW_JUMP of its
+    distance since the last call, it is forgotten.
     """
     R, p, eye = pose
     world, cull_scratch, _ = scratch
@@ -139,8 +151,7 @@ def seen_strips(pos, strips, head, pose, scratch, visible):
         for s in range(proof_rest.shape[0]):
             proof_rest[s] = 0
     last_eye[0], last_eye[1], last_eye[2] = hx, hy, hz
-    projection = _world_projection(head, R, p, world)
-    _spheres_to_world(head[1], R, p, world[1])
+    _spheres_to_world(occ_head, R, p, world[1])
     return culling.visible_strips(pos, strips, projection, (eye, world[1]), cull_scratch,
                                   visible)
 
@@ -164,13 +175,13 @@ def mesh_vertices(pos, strips, lod, head, pose, scratch, out):
     strip_strands, sigma = strips[0], strips[1]
     world, cull_scratch, wall_scratch = scratch
     visible, grid, vertices, flags = out
+    projection = _world_projection(head, R, p, world)
     if cull:
-        count = seen_strips(pos, strips, head, (R, p, eye), scratch, visible)
+        count = _seen_strips(pos, strips, projection, head[1], (R, p, eye), scratch, visible)
     else:
         count = strip_strands.shape[0]
         for s in range(count):
             visible[s] = s
-    projection = _world_projection(head, R, p, world)
     drawn = visible[:count]
     ushape.tessellate_strips(pos, strip_strands, drawn, along, across, grid)
     ushape.ushape(grid[:count], sigma, drawn, projection, vertices[:count], flags[:count],
