@@ -162,6 +162,24 @@ def strand_sphere_masks(root, reach, spheres, masks):
 
 
 @njit_without_refcounts
+def place_with_head(head, attach, bodies, collisions, broad_phase):
+    """
+    Place the roots and spheres with the head, and run the broad phase; return its checks.
+
+    With collisions, masks[s] says which spheres strand s can touch (every sphere without
+    the broad phase); a step's substeps share them (the head's motion is the step's).
+    """
+    root_kinematics(head, attach.root_head, attach.spheres_head, attach.roots,
+                    attach.root_vel, attach.root_acc, bodies)
+    if not collisions:
+        return 0
+    if broad_phase:
+        return strand_sphere_masks(attach.roots, attach.reach, bodies.spheres, bodies.masks)
+    bodies.masks[:] = (np.int64(1) << np.int64(bodies.spheres.shape[0])) - 1
+    return 0
+
+
+@njit_without_refcounts
 def _winds_at_middles(pos, t, wind, out):
     """
     Write the wind velocity at each strand's middle vertex into out[s, 0].
@@ -207,7 +225,8 @@ def external_forces(strands,
                     drag_factor,
                     air_damping,
                     root_inertia,
-                    forces):
+                    forces,
+                    moving=None):
     """
     Set the distributed force of every segment (eq. 5) and clear the end forces.
 
@@ -218,6 +237,9 @@ def external_forces(strands,
     the wind; and air damping -nu m v at the segment's centre, relative to still air. The
     gusts' wavelengths (0.5 - 3 m) are longer than a strand, so the turbulence is evaluated
     once per strand, at its middle vertex.
+
+    moving (n_strands,), if given, is each strand's step: a strand whose step is 0 waits
+    (the articulated model's multirate substeps) and its forces are left as they are.
     """
     pos, vel, length, mass = strands.pos, strands.vel, strands.length, strands.mass
     f_dist, f_end = forces.f_dist, forces.f_end
@@ -225,6 +247,8 @@ def external_forces(strands,
     if wind_on:                  # each strand's wind, held in f_end[s, 0] until cleared
         _winds_at_middles(pos, t, wind, f_end)
     for s in range(n_s):
+        if moving is not None and moving[s] <= 0.0:
+            continue
         ax, ay, az = gravity[0], gravity[1], gravity[2]
         if root_inertia:
             ax -= root_acc[s, 0]
@@ -371,7 +395,8 @@ def reaction_constraint_forces(strands,
                                c_per_m,
                                record_contacts,
                                forces,
-                               hinge=None):
+                               hinge=None,
+                               moving=None):
     """
     Collision response by reaction constraints (eqs. 7-10) for vertices and segments.
 
@@ -400,6 +425,9 @@ def reaction_constraint_forces(strands,
     lifting: a segment resting within CONTACT_SKIN of the scalp was thrown off it, fell
     back, and did so for ever at 1/60 s (side_swept_long released at rest under a head
     tilted by 0.25 rad: a cycle of three steps, 1.5 mm at the first vertex).
+
+    moving (n_strands,), if given, is each strand's step: a strand whose step is 0 waits
+    and is left as it is (forces and record).
     """
     pos, vel, length = strands.pos, strands.vel, strands.length
     spheres, sphere_vel, masks = bodies.spheres, bodies.sphere_vel, bodies.masks
@@ -408,11 +436,15 @@ def reaction_constraint_forces(strands,
     contacts = 0
     if record_contacts:
         for s in range(n_s):
+            if moving is not None and moving[s] <= 0.0:
+                continue
             for i in range(n_seg):
                 for q in range(CONTACT_SLOTS):
                     contact[s, i, q * CONTACT_FIELDS + CONTACT_K] = 0.0
                     contact[s, i, q * CONTACT_FIELDS + CONTACT_C] = 0.0
     for s in range(n_s):
+        if moving is not None and moving[s] <= 0.0:
+            continue
         mask = masks[s]
         if mask == 0:
             continue

@@ -509,15 +509,18 @@ class HairSimulator:
         if at_least > 1:
             counts = np.maximum(counts, at_least)
         n = int(counts.max())
-        if n == 1:                                 # (the usual step: whole)
-            whole = np.full(len(counts), h)
-            self._substep(t - h + h / n, h, whole, whole)
-        else:
+        if n > 1:
             if shared or counts.min() == n or (self.params.inter_strip and len(self.pairs)):
                 counts = np.full_like(counts, n)
             else:
                 counts = np.left_shift(1, np.ceil(np.log2(counts)).astype(np.int64))
                 n = int(counts.max())
+        if self.solver.whole_step:                 # every substep in one kernel call
+            self._whole_step(t, h, n, counts)
+        elif n == 1:                               # (the usual step: whole)
+            whole = np.full(len(counts), h)
+            self._substep(t - h + h / n, h, whole, whole)
+        else:
             own_h = h / counts
             stride = n // counts
             strand_h = np.empty_like(own_h)
@@ -589,8 +592,48 @@ class HairSimulator:
         own_h[i] is strand i's own substep, the one it is in (forces at its middle). A
         fused model (one kernel call for the whole step) takes every strand by h.
         """
-        p = self.params
         c = self.counters
+        head, bodies, settings = self._kernel_inputs(t)
+        if self.solver.fused:                  # the whole step in one kernel call
+            checks, contacts, walls, segments = self.solver.substep(self, h, head, bodies,
+                                                                    settings)
+            c['kernel_calls'] += 1
+        else:
+            checks, contacts, walls, segments = self._substep_by_kernel(strand_h, own_h, head,
+                                                                        bodies, settings)
+        self._count_substeps(1, h, (checks, contacts, walls, segments))
+
+    def _whole_step(self, t, h, n, counts):
+        """
+        Take a step of n substeps ending at t in one call of the model's kernel (whole_step).
+
+        Strand i takes counts[i] of them (dividing n), each h / counts[i] long, as _simulate
+        does one by one.
+        """
+        head, bodies, settings = self._kernel_inputs(t - h + h / n)
+        step = (float(t), h, n, bool(self.solver.forces_at_mid_step))
+        done = self.solver.simulate(self, step, counts, head, bodies, settings)
+        self.counters['kernel_calls'] += 1
+        self._count_substeps(n, h / n, done)
+
+    def _count_substeps(self, n, h, done):
+        """Count n substeps of h that did done = (checks, contacts, walls, segments)."""
+        c = self.counters
+        checks, contacts, walls, segments = done
+        c['broad_phase_checks'] += checks
+        c['contacts'] += contacts
+        c['wall_springs'] += walls
+        c['segment_updates'] += segments
+        c['awake_steps'] += n
+        self.state_version += n
+        c['recharts'] = int(self.stats[F.RECHARTS])
+        c['guard_moves'] = int(self.stats[F.GUARD_MOVES])
+        c['turn_clamps'] = int(self.stats[F.TURN_CLAMPS])
+        self.last_dt = h
+
+    def _kernel_inputs(self, t):
+        """Return the head's kinematics, the bodies and the ForceSettings of a (sub)step at t."""
+        p = self.params
         if self._constants_of is not p or self._springs_rest3 is not self.rest3:
             self._cache_constants()
         head = self.head_kinematics
@@ -609,48 +652,20 @@ class HairSimulator:
             inter_strip=p.inter_strip,
             n_scalp=self.n_scalp,
         )
-        if self.solver.fused:                  # the whole step in one kernel call
-            checks, contacts, walls, segments = self.solver.substep(self, h, head, bodies,
-                                                                    settings)
-            c['kernel_calls'] += 1
-        else:
-            checks, contacts, walls, segments = self._substep_by_kernel(strand_h, own_h, head,
-                                                                        bodies, settings)
-        c['broad_phase_checks'] += checks
-        c['contacts'] += contacts
-        c['wall_springs'] += walls
-        c['segment_updates'] += segments
-        c['awake_steps'] += 1
-        self.state_version += 1
-        c['recharts'] = int(self.stats[F.RECHARTS])
-        c['guard_moves'] = int(self.stats[F.GUARD_MOVES])
-        c['turn_clamps'] = int(self.stats[F.TURN_CLAMPS])
-        self.last_dt = h
+        return head, bodies, settings
 
     def _substep_by_kernel(self, strand_h, own_h, head, bodies, settings):
         """Run the shared force kernels one by one, then the model's step (see _substep)."""
         c = self.counters
         attach = self.attachment
-        F.root_kinematics(
+        checks = F.place_with_head(
             head,
-            attach.root_head,
-            attach.spheres_head,
-            attach.roots,
-            attach.root_vel,
-            attach.root_acc,
+            attach,
             bodies,
+            settings.collisions,
+            settings.broad_phase,
         )
-        checks = contacts = walls = 0
-        if settings.collisions:
-            if settings.broad_phase:
-                checks = F.strand_sphere_masks(
-                    attach.roots,
-                    attach.reach,
-                    bodies.spheres,
-                    bodies.masks,
-                )
-            else:                          # every sphere tested against every strand
-                bodies.masks[:] = (np.int64(1) << np.int64(len(bodies.spheres))) - 1
+        contacts = walls = 0
         self.solver.velocities(self, self.last_dt)
         strands = self.strands
         if self.solver.forces_at_mid_step:      # (Stormer-Verlet: see solvers/articulated)
@@ -670,6 +685,7 @@ class HairSimulator:
             settings.air_damping,
             self.solver.root_inertia,
             forces,
+            strand_h,
         )
         c['kernel_calls'] += 1
         if self.solver.uses_contacts and not settings.collisions:   # (else the kernel does)
@@ -688,6 +704,7 @@ class HairSimulator:
                 self.solver.uses_contacts,
                 forces,
                 self.solver.contact_hinge(head),
+                strand_h,
             )
             c['kernel_calls'] += 1
         if not self.solver.springs_before_contacts:

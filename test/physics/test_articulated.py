@@ -824,6 +824,7 @@ def test_a_strand_that_outran_its_substeps_has_the_step_taken_again_shared():
         return out
 
     spoiled.solver.step = fling_at_the_end
+    spoiled.solver.whole_step = False     # (the fault goes in between substeps)
     twin.solver.substeps_for = lambda h: np.array([n, n])
     for sim in (spoiled, twin):
         sim.step(DEFAULT_DT)
@@ -890,6 +891,7 @@ def test_a_step_that_blows_up_is_taken_again_from_where_it_started():
         return out
 
     spoiled.solver.step = spoil_first
+    spoiled.solver.whole_step = False     # (the fault goes in between substeps)
     counts = twin.solver.substeps_for(h).copy()
     n = int(counts.max())
     twin.solver.substeps_for = lambda hh: RETRY_SUBSTEP_FACTOR * counts
@@ -927,6 +929,7 @@ def test_strands_that_all_outran_their_shared_count_take_the_step_again_finer():
         return out
 
     spoiled.solver.step = fling_at_the_end
+    spoiled.solver.whole_step = False     # (the fault goes in between substeps)
     spoiled.solver.substeps_for = lambda h: (np.array([1, 1]) if not calls
                                              else real_counts(h))
     twin.solver.substeps_for = lambda h: np.array([articulated.MAX_SUBSTEPS] * 2)

@@ -153,10 +153,22 @@ def test_one_call_step_equals_the_kernels_one_by_one(integrator):
     type may change.
     """
     from hair_sim import DEFAULT_DT, HairSimulator, load_hairstyle, paths
-    from hair_sim.bench.scenarios import drive, violent
     style = load_hairstyle(paths.shipped_style('thesis_long'))
     sims = [HairSimulator(style, integrator=integrator, damping=8) for _ in range(2)]
     sims[1].solver.fused = False                     # the reference: one kernel at a time
+    for _ in _twins_through_stages(sims, style, 0.4, DEFAULT_DT):
+        np.testing.assert_array_equal(sims[0].pos, sims[1].pos)
+        assert sims[0].counters['contacts'] == sims[1].counters['contacts'] > 0
+        assert sims[0].counters['kernel_calls'] < sims[1].counters['kernel_calls']
+
+
+def _twins_through_stages(sims, style, seconds, dt):
+    """
+    Drive sims through violent motion in three stages, yielding after each.
+
+    The second stage adds wind and changes a parameter, the third the style's layout.
+    """
+    from hair_sim.bench.scenarios import drive, violent
     t = 0.0
     for stage in range(3):
         for sim in sims:
@@ -165,11 +177,44 @@ def test_one_call_step_equals_the_kernels_one_by_one(integrator):
                 sim.set_params(damping=9.5)
             if stage == 2:
                 sim.set_style(style.with_strip_count(60))
-            drive(sim, violent, t, 0.4, DEFAULT_DT)
-        t += 0.4
+            drive(sim, violent, t, seconds, dt)
+        t += seconds
+        yield stage
+
+
+def test_one_call_chain_step_equals_the_substeps_one_by_one():
+    """
+    Check the articulated model's one-call step against its kernels one substep at a time.
+
+    Bit for bit, with the substep counts each takes: a style (inter-strip springs, every
+    strand at the finest count) through violent motion, wind, a parameter change and a new
+    layout; and the hanging-hair scene (no springs: strands at their own counts, waiting
+    at the others, whose forces are then not worked out).
+    """
+    from hair_sim import HairSimulator, load_hairstyle, paths
+    from hair_sim.bench import hanging
+    style = load_hairstyle(paths.shipped_style('thesis_long'))
+    sims = [HairSimulator(style, model='articulated') for _ in range(2)]
+    sims[1].solver.whole_step = False                # the reference: kernel by kernel
+    for _ in _twins_through_stages(sims, style, 0.3, 1.0 / 60.0):
         np.testing.assert_array_equal(sims[0].pos, sims[1].pos)
-        assert sims[0].counters['contacts'] == sims[1].counters['contacts'] > 0
+        for key in ('substeps', 'contacts', 'wall_springs', 'guard_moves'):
+            assert sims[0].counters[key] == sims[1].counters[key] > 0
         assert sims[0].counters['kernel_calls'] < sims[1].counters['kernel_calls']
+    sims = []
+    for whole_step in (True, False):
+        sim = HairSimulator.from_strands(hanging.rest_strands(20, 10), hanging.head_model(),
+                                         **hanging.scene_params('articulated'))
+        sim.solver.whole_step = whole_step
+        sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+        for _ in range(30):
+            sim.step(1.0 / 60.0)
+        sims.append(sim)
+    np.testing.assert_array_equal(sims[0].pos, sims[1].pos)
+    # multirate did happen: some substeps had strands waiting
+    assert sims[0].counters['strand_substeps'] < 20 * sims[0].counters['substeps']
+    for key in ('substeps', 'strand_substeps', 'contacts', 'guard_moves'):
+        assert sims[0].counters[key] == sims[1].counters[key] > 0
 
 
 @pytest.mark.parametrize('style_name', ['thesis_long', 'side_swept_long'])

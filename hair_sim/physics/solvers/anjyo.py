@@ -33,8 +33,8 @@ from hair_sim.kernels import njit_without_refcounts
 from hair_sim.physics.compiled_call import CompiledCall
 from hair_sim.physics.forces import (explicit_stability_problem, external_forces, GUARD_LIFT,
                                      GUARD_MOVES, guard_segment, MAX_RATE, MIN_SIN_THETA,
-                                     reaction_constraint_forces, RECHARTS, root_kinematics,
-                                     rotate, strand_sphere_masks, strip_springs, TURN_CLAMPS)
+                                     place_with_head, reaction_constraint_forces, RECHARTS,
+                                     rotate, strip_springs, TURN_CLAMPS)
 from hair_sim.vecmath import atan2_vectorizable, perpendicular_unit
 
 POLE_COS = cos(pi / 4.0)     # re-chart when |cos(theta)| exceeds this (45 deg from a pole)
@@ -669,15 +669,7 @@ def thesis_substep(state,
     springs is (StripSprings, SpringConstants). Return (broad-phase checks, contacts,
     wall springs, segments updated).
     """
-    root_kinematics(head, attach.root_head, attach.spheres_head, attach.roots,
-                    attach.root_vel, attach.root_acc, bodies)
-    checks = 0
-    if settings.collisions:
-        if settings.broad_phase:
-            checks = strand_sphere_masks(attach.roots, attach.reach, bodies.spheres,
-                                         bodies.masks)
-        else:                              # every sphere tested against every strand
-            bodies.masks[:] = (np.int64(1) << np.int64(bodies.spheres.shape[0])) - 1
+    checks = place_with_head(head, attach, bodies, settings.collisions, settings.broad_phase)
     finite_difference_velocities(strands.pos, strands.pos_prev, h_prev, strands.vel)
     external_forces(strands, attach.root_acc, settings.gravity, wind, settings.wind_on,
                     settings.t, settings.drag_factor, settings.air_damping, True, forces)
@@ -750,6 +742,7 @@ class AnjyoSolver:
     holds_modeled_walls = False     # type-2 springs act within d2, as in thesis 5.2
     retries_diverged_steps = False  # MAX_TURN bounds a step's turn; nothing saved per step
     fused = True                    # a whole step is one kernel call (thesis_substep)
+    whole_step = False              # (one step is one substep: fused says it all)
     springs_before_contacts = True  # eq. 7 bears what the springs of 5.2 press with too
     uses_contacts = False        # the contact record (implicit contacts) is not read
     forces_at_mid_step = False   # eqs. 4-6 take the forces where the step starts

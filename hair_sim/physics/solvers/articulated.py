@@ -92,8 +92,11 @@ from hair_sim.kernels import njit_without_refcounts
 from hair_sim.physics.forces import (CONTACT_C, CONTACT_FIELDS, CONTACT_K, CONTACT_LEVER,
                                      CONTACT_NX, CONTACT_NY, CONTACT_NZ, CONTACT_SLOTS,
                                      CONTACT_LOAD, CONTACT_LOAD_MID, CONTACT_SPHERE,
-                                     explicit_stability_problem,
-                                     GUARD_LIFT, GUARD_MOVES, guard_segment, MAX_RATE)
+                                     explicit_stability_problem, external_forces,
+                                     GUARD_LIFT, GUARD_MOVES, guard_segment, MAX_RATE,
+                                     place_with_head, reaction_constraint_forces,
+                                     Strands, strip_springs)
+from hair_sim.physics.compiled_call import CompiledCall
 
 # weight of the implicit spring increment: >= 1/4 is stable for a still base; a stiff root
 # joint driven by a turning head grew at 0.3 (measured, 1/60 s) and holds at 0.5
@@ -1194,6 +1197,93 @@ def step_chains(state,
     return updated
 
 
+@njit_without_refcounts
+def chain_step(state,
+               strands,
+               pos_mid,
+               forces,
+               bodies,
+               head,
+               attach,
+               wind,
+               springs,
+               settings,
+               step,
+               counts,
+               strand_h,
+               stats,
+               scratch):
+    """
+    Take one whole step of the chains in one call: all of its substeps.
+
+    The kernels the driver would otherwise call one by one per substep (see
+    HairSimulator._simulate), without the Python between them: the roots and spheres
+    placed with the head and the broad phase (once: the head's motion is the step's),
+    then per substep the shared forces of eqs. 5 and 7-11 at each strand's mid-step
+    configuration x + (own h / 2) v, the springs of 5.2 after the contacts, and
+    step_chains. step is (t at the step's end, h, n substeps, whether the forces are taken
+    at mid-step (forces_at_mid_step) or at the start); counts[s] divides n, and
+    strand s moves by h / counts[s] at every (n / counts[s])-th substep (multirate),
+    waiting at the others; strand_h is scratch (n_strands,). springs is (StripSprings,
+    SpringConstants). Returns (broad-phase checks, contacts, wall springs, segments
+    updated), summed over the substeps.
+    """
+    t_end, h, n, mid_step = step
+    checks = place_with_head(head, attach, bodies, settings.collisions, settings.broad_phase)
+    pos, vel = strands.pos, strands.vel
+    at_mid = Strands(pos_mid if mid_step else pos, strands.pos_prev, vel, strands.length,
+                     strands.mass)
+    n_s, n_v = pos.shape[0], pos.shape[1]
+    contacts = walls = segments = 0
+    for k in range(n):
+        t = t_end - h + (k + 1) * h / n
+        for s in range(n_s):
+            own = h / counts[s]
+            strand_h[s] = own if (k + 1) % (n // counts[s]) == 0 else 0.0
+            if mid_step:
+                # each strand at the middle of its own substep (one waiting: of its next)
+                half = 0.5 * own
+                for j in range(n_v):
+                    for a in range(3):
+                        pos_mid[s, j, a] = vel[s, j, a] * half + pos[s, j, a]
+        # drag against still air too (ArticulatedSolver.still_air_drag), and no root
+        # inertia: the base motion comes out of the dynamics
+        external_forces(at_mid, attach.root_acc, settings.gravity, wind, True, t,
+                        settings.drag_factor, settings.air_damping, False, forces, strand_h)
+        if not settings.collisions:      # (else reaction_constraint_forces clears it)
+            contact = forces.contact
+            for s in range(n_s):
+                for i in range(contact.shape[1]):
+                    for q in range(CONTACT_SLOTS):
+                        contact[s, i, q * CONTACT_FIELDS + CONTACT_K] = 0.0
+                        contact[s, i, q * CONTACT_FIELDS + CONTACT_C] = 0.0
+        else:
+            contacts += reaction_constraint_forces(at_mid,
+                                                   bodies,
+                                                   settings.collision_stiffness,
+                                                   settings.collision_damping,
+                                                   True,
+                                                   forces,
+                                                   None,
+                                                   strand_h)
+        if settings.inter_strip and springs[0].pairs.shape[0] > 0:
+            walls += strip_springs(at_mid, bodies.spheres[:settings.n_scalp], springs[0],
+                                   springs[1], forces)
+        segments += step_chains(state,
+                                strands,
+                                forces,
+                                head,
+                                attach.roots,
+                                attach.root_vel,
+                                attach.root_acc,
+                                bodies,
+                                settings.collisions,
+                                strand_h,
+                                stats,
+                                scratch)
+    return checks, contacts, walls, segments
+
+
 # ------------------------------------------------------------------ set-up (numpy, once)
 def frames_along(directions, first):
     """
@@ -1424,7 +1514,8 @@ class ArticulatedSolver:
     uses_contacts = True         # contacts are folded into the articulated inertia
     forces_at_mid_step = True    # Stormer-Verlet: the forces at x + (h / 2) v
     contact_damping_rate = CONTACT_DAMPING_RATE   # 1/s, times the mass per metre
-    fused = False                # the shared kernels one by one, then the chain
+    fused = False                # (not one call per substep: see whole_step)
+    whole_step = True            # all of a step's substeps in one call (chain_step)
     springs_before_contacts = False  # contacts first (the chain takes them implicitly)
 
     def __init__(self, sim):
@@ -1440,6 +1531,8 @@ class ArticulatedSolver:
         self.rest_rel = np.ascontiguousarray(np.swapaxes(parents, -1, -2) @ self.modeled)
         self.scratch = chain_scratch(n_seg)
         self._swings = np.zeros(n_s)              # substeps_for's per-strand fastest swing
+        self._strand_h = np.zeros(n_s)            # chain_step's per-substep steps
+        self._step_call = CompiledCall(chain_step)
         self.update_material(sim)
 
     def update_material(self, sim):
@@ -1564,6 +1657,32 @@ class ArticulatedSolver:
             sim.bodies,
             sim.params.collisions,
             strand_h,
+            sim.stats,
+            self.scratch,
+        )
+
+    def simulate(self, sim, step, counts, head, bodies, settings):
+        """
+        Take a whole step of substeps (forces and chains) in one kernel call; see chain_step.
+
+        step is (t at its end, h, n substeps, forces at mid-step), counts each strand's
+        (dividing n).
+        """
+        return self._step_call(
+            sim.layout_version,
+            self.state(),
+            sim.strands,
+            sim._pos_mid,
+            sim.forces,
+            bodies,
+            head,
+            sim.attachment,
+            sim.wind.field,
+            (sim._strip_springs, sim._spring_constants),
+            settings,
+            step,
+            counts,
+            self._strand_h,
             sim.stats,
             self.scratch,
         )
