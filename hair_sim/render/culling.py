@@ -30,7 +30,10 @@ piece by one shadow, or else split at most MAX_SPLITS times. Anything left over 
 The spheres are tried from the one that held the last piece. A strip whose proof failed
 (every simulated vertex in shadow, yet some part may be seen: it lies on the silhouette)
 is drawn without a proof for the next PROOF_REST calls: drawing a strip is always safe, and
-a failed proof costs more than drawing it. The test suite checks
+a failed proof costs more than drawing it. A strip proven hidden with every row held by
+one shadow without its walls worked out keeps the proof's certificate (which sphere held
+each row, and by which bound); the next call checks that first (certificate_holds), a
+proof of the strands as they are then, without the search. The test suite checks
 against a ray caster that no culled strip is hit by any ray, on every shipped style, and
 that the wall bounds hold the walls the projection gives.
 """
@@ -49,6 +52,28 @@ SPLIT_ROWS = 3 * MAX_SPLITS + 2      # the most pieces waiting at once, and a sc
 # calls for which a strip whose proof failed is drawn without one. Measured on thesis_long
 # from the front: its two silhouette strips cost 1.5 us each to fail, against 1.3 us to draw
 PROOF_REST = 8
+# A strip proven hidden keeps its proof's certificate, per row pair the level that held
+# it and the spheres: one sphere for the row and every wall it could have (by the fix-up
+# length, a sphere that holds S; or by wall_extents), or one for the face and one for each
+# edge with its wall (by how far the walls reach, or by their bottoms worked out). The
+# next call checks that first (certificate_holds): the proof again, without the search
+# that found it. A row held only piece by piece after splits gives no certificate.
+PROOF_FIX_UP = 1
+PROOF_EXTENTS = 2
+PROOF_REACH = 3
+PROOF_BOTTOMS = 4
+
+
+@njit_without_refcounts
+def _proof_code(level, face, edge_a, edge_b):
+    """Return a row's certificate: its level and spheres (< 256 each) in one int64."""
+    return level | (face << 3) | (edge_a << 11) | (edge_b << 19)
+
+
+@njit_without_refcounts
+def _proof_spheres(code):
+    """Return the (face, edge a, edge b) spheres of a row's certificate."""
+    return (code >> 3) & 255, (code >> 11) & 255, (code >> 19) & 255
 
 
 @njit(cache=True)
@@ -271,19 +296,21 @@ def _wall_held(depth, edge, rows, grow, shadows, first):
 @njit_without_refcounts
 def _pieces_held(depth, strip, rows, grow, shadows, first):
     """
-    Return a sphere that held the last of the three pieces of rows j, j + 1, or -1.
+    Return (face, edge a, edge b): the spheres that held the three pieces of rows j, j + 1.
 
     The pieces are the face between the edges and each edge with its wall (its corners
-    grown as _wall_held says), each held by one sphere, not necessarily the same.
-    strip is (strands a, b, ends); rows (j, extra); shadows (eye, cones).
+    grown as _wall_held says), each held by one sphere, not necessarily the same; edge b's
+    is -1 if some piece is not held. strip is (strands a, b, ends); rows (j, extra);
+    shadows (eye, cones).
     """
     a, b, ends = strip
-    k = _face_held(depth, rows, grow, first)
-    for q in range(2):
-        if k < 0:
-            return -1
-        k = _wall_held(depth, (q, a if q == 0 else b, ends), rows, grow, shadows, k)
-    return k
+    face = _face_held(depth, rows, grow, first)
+    if face < 0:
+        return -1, -1, -1
+    edge_a = _wall_held(depth, (0, a, ends), rows, grow, shadows, face)
+    if edge_a < 0:
+        return face, -1, -1
+    return face, edge_a, _wall_held(depth, (1, b, ends), rows, grow, shadows, edge_a)
 
 
 @njit_without_refcounts
@@ -389,10 +416,92 @@ def _deviations(pos, strands, grow):
 
 
 @njit_without_refcounts
-def _strip_hidden(pos, strip, walls, grow, shadows, first, work):
+def _vertex_held(pos, st, r, rho, shadows, k):
+    """Return whether the ball of radius rho around vertex r of strand st is in shadow k."""
+    eye, cones = shadows[0], shadows[1]
+    return shadow_depth(pos[st, r, 0], pos[st, r, 1], pos[st, r, 2], eye, cones, k) >= rho
+
+
+@njit_without_refcounts
+def certificate_holds(pos, strip, proof, walls, shadows, grow):
+    """
+    Return the sphere that held a strip's last row under its certificate, or -1.
+
+    proof (V - 1,) is the certificate of an earlier proof (_strip_hidden's, _proof_code):
+    per row pair j, j + 1 a level and its spheres. Each row is held as that level holds it,
+    with those spheres only: the vertices' balls, grown by their deviations (_deviations,
+    worked out again) and the fix-up length (the sphere must hold the projection sphere S)
+    or their wall_extents, lie in one shadow (as _held_with_any_walls); or the face in one
+    and each edge with its wall, the walls' reach or bottoms worked out again, in one each
+    (as _pieces_held). That is a proof by itself, of the strands as they are now; the search
+    for the spheres is what it saves. strip is (s, strip_strands, sigma_s); walls and
+    grow as _strip_hidden takes them; shadows (eye, cones, which spheres hold S).
+    """
+    s, strip_strands, sigma_s = strip
+    projection, bottoms, reach, worked, spans = walls
+    eye, cones, holds_s = shadows
+    grow, fix_ups, extents = grow
+    a, b = strip_strands[s, 0], strip_strands[s, 1]
+    strands = (a, b)
+    _deviations(pos, strands, grow)
+    worked[:] = False
+    extents[0, 0] = -1.0                         # not worked out yet
+    k = -1
+    checked = -1                                 # vertex j was checked with this code
+    for j in range(pos.shape[1] - 1):
+        code = proof[j]
+        level = code & 7
+        face, edge_a, edge_b = _proof_spheres(code)
+        k = edge_b
+        if level <= PROOF_EXTENTS:
+            if level == PROOF_FIX_UP:
+                if not holds_s[k]:
+                    return -1
+                walls_q = fix_ups
+            else:
+                if extents[0, 0] < 0.0:
+                    wall_extents(pos, strands, grow, projection, extents)
+                walls_q = extents
+            for q in range(2):
+                for r in range(j if code != checked else j + 1, j + 2):
+                    if not _vertex_held(pos, strands[q], r, grow[q, r] + walls_q[q, r],
+                                        shadows, k):
+                        return -1
+            checked = code
+            continue
+        checked = -1
+        extra = projection.fix_len if level == PROOF_REACH else 0.0
+        for r in range(j, j + 2):                # the face: the four corners' balls
+            for q in range(2):
+                if not _vertex_held(pos, strands[q], r, grow[q, r], shadows, face):
+                    return -1
+        for r in range(j, j + 2):                # the walls' ends of the two rows
+            if level == PROOF_REACH and not worked[0, r]:
+                strip_wall_reach(pos, strip_strands, s, projection, (r, r), reach)
+                worked[0, r] = True
+            if level == PROOF_BOTTOMS and not worked[1, r]:
+                strip_wall_bottoms(pos, strip_strands, s, sigma_s, projection, (r, r),
+                                   bottoms, spans)
+                worked[1, r] = True
+        ends = reach if level == PROOF_REACH else bottoms
+        for q in range(2):                       # each edge with its wall
+            st = strands[q]
+            kq = edge_a if q == 0 else edge_b
+            for r in range(j, j + 2):
+                if not _vertex_held(pos, st, r, grow[q, r] + extra, shadows, kq) or \
+                        not ball_in_shadow(ends[st, r, 0], ends[st, r, 1], ends[st, r, 2],
+                                           grow[q, r], eye, cones, kq):
+                    return -1
+    return k
+
+
+@njit_without_refcounts
+def _strip_hidden(pos, strip, walls, grow, shadows, first, work, proof):
     """
     Return a sphere that held the last piece of a hidden strip, or -1 if it may be seen.
 
+    proof (V - 1,) gets each row pair's certificate (_proof_code: its level and the
+    candidates that held it), or -2 for a row held only after splits.
     strip is (s, strip_strands, sigma_s); walls (projection, bottoms, reach, which rows
     have them worked out (2, V), the projection's scratch); grow (the deviations (2, V),
     scratch for wall_extents); shadows (eye, the candidates' cones, which of them hold
@@ -417,30 +526,36 @@ def _strip_hidden(pos, strip, walls, grow, shadows, first, work):
         held = _held_with_any_walls(depth, (j, j + 1), grow, fix_ups, holds_s, k)
         if held >= 0:
             k = held
+            proof[j] = _proof_code(PROOF_FIX_UP, held, held, held)
             continue
         if extents[0, 0] < 0.0:
             wall_extents(pos, strands, grow, projection, extents)
         held = _held_with_any_walls(depth, (j, j + 1), grow, extents, None, k)
         if held >= 0:
             k = held
+            proof[j] = _proof_code(PROOF_EXTENTS, held, held, held)
             continue
+        proof[j] = -2                            # (unless a level below holds it)
         for r in range(j, j + 2):
             if not worked[0, r]:
                 strip_wall_reach(pos, strip_strands, s, projection, (r, r), reach)
                 worked[0, r] = True
-        held = _pieces_held(depth, (a, b, reach), (j, projection.fix_len), grow, (eye, cones),
-                            k)
-        if held >= 0:
-            k = held
+        face, edge_a, edge_b = _pieces_held(depth, (a, b, reach), (j, projection.fix_len),
+                                            grow, (eye, cones), k)
+        if edge_b >= 0:
+            k = edge_b
+            proof[j] = _proof_code(PROOF_REACH, face, edge_a, edge_b)
             continue
         for r in range(j, j + 2):
             if not worked[1, r]:
                 strip_wall_bottoms(pos, strip_strands, s, sigma_s, projection, (r, r),
                                    bottoms, spans)
                 worked[1, r] = True
-        held = _pieces_held(depth, (a, b, bottoms), (j, 0.0), grow, (eye, cones), k)
-        if held >= 0:
-            k = held
+        face, edge_a, edge_b = _pieces_held(depth, (a, b, bottoms), (j, 0.0), grow,
+                                            (eye, cones), k)
+        if edge_b >= 0:
+            k = edge_b
+            proof[j] = _proof_code(PROOF_BOTTOMS, face, edge_a, edge_b)
             continue
         rho = max(grow[0, j], grow[0, j + 1], grow[1, j], grow[1, j + 1])
         _set_quad(work, pos, a, pos, b, j)       # the face between the edges
@@ -486,9 +601,11 @@ def visible_strips(pos,
     """
     Write the strips that may be seen from the eye into out[:count], in order; return count.
 
-    strips is (strip_strands, sigma, proof_rest), proof_rest (n_strips,) int64 counting
-    down the calls a strip whose proof failed is drawn without one (kept by the caller
-    from call to call, zeros at first); view (eye, occluding spheres), both world;
+    strips is (strip_strands, sigma, proof_rest, proofs), proof_rest (n_strips,) int64
+    counting down the calls a strip whose proof failed is drawn without one, proofs
+    (n_strips, V - 1) int64 the certificates of the strips proven hidden (certificate_holds;
+    -1 in the first column: none), both kept by the caller from call to call (zeros, and
+    -1, at first); view (eye, occluding spheres), both world;
     scratch culling_scratch's. The drawn edge of a strip is an Oslo refinement of its
     simulated edge polygon and lies within |second difference| / 6 of it (refined control
     polygons of a cubic B-spline stay between the control polygon and the curve); its wall
@@ -521,12 +638,13 @@ def _visible_strips_into(pos, strips, walls, shadows, scratch, candidates_scratc
     """
     visible_strips, given its scratch: no array is made here (no reference counts).
 
-    strips is (strip_strands, sigma, proof_rest); walls as _strip_hidden takes it; shadows (eye,
+    strips is (strip_strands, sigma, proof_rest, proofs); walls as _strip_hidden takes it;
+    shadows (eye,
     cones, which spheres hold S); scratch (grow, the fix-up length everywhere (2, V),
     wall_extents, quad_in_shadow's pieces, points, depth); candidates_scratch (the
     candidate spheres, their cones and which of them hold S).
     """
-    strip_strands, sigma, proof_rest = strips
+    strip_strands, sigma, proof_rest, proofs = strips
     projection, bottoms, reach, worked, spans = walls
     eye, cones, holds_s = shadows
     grow, fix_ups, extents, work, points, depth = scratch
@@ -546,6 +664,14 @@ def _visible_strips_into(pos, strips, walls, shadows, scratch, candidates_scratc
             count += 1
             continue
         a, b = strip_strands[s, 0], strip_strands[s, 1]
+        proof = proofs[s]
+        if proof[0] >= 0:                        # hidden last call, by a cheap proof
+            held = certificate_holds(pos, (s, strip_strands, sigma[s]), proof, walls, shadows,
+                                     (grow, fix_ups, extents))
+            if held >= 0:
+                last = held
+                continue
+            proof[0] = -1
         vis = False
         for q in range(2):                       # cheap and exact first
             st = a if q == 0 else b
@@ -608,6 +734,8 @@ def _visible_strips_into(pos, strips, walls, shadows, scratch, candidates_scratc
                 nc += 1
         if whole >= 0:                           # hidden, walls and all, at once
             last = whole
+            for j in range(V - 1):
+                proof[j] = _proof_code(PROOF_FIX_UP, whole, whole, whole)
             continue
         for q in range(2):
             st = a if q == 0 else b
@@ -620,7 +748,10 @@ def _visible_strips_into(pos, strips, walls, shadows, scratch, candidates_scratc
         shadow_depths(points, 2 * V, eye, near, near_depth)
         held = _held_with_any_walls(near_depth, (0, V - 1), grow, fix_ups, near_holds_s,
                                     first)
-        if held < 0:                             # not without working out the walls
+        if held >= 0:
+            for j in range(V - 1):
+                proof[j] = _proof_code(PROOF_FIX_UP, held, held, held)
+        else:                                    # not without working out the walls
             worked[:] = False
             held = _strip_hidden(pos,
                                  (s, strip_strands, sigma[s]),
@@ -628,10 +759,20 @@ def _visible_strips_into(pos, strips, walls, shadows, scratch, candidates_scratc
                                  (grow, fix_ups, extents),
                                  (eye, near, near_holds_s, near_depth),
                                  first,
-                                 work)
+                                 work,
+                                 proof)
         if held >= 0:
             last = candidates[held]
+            # the certificate, in the spheres' own numbers (none if a row needed more)
+            for j in range(V - 1):
+                if proof[j] < 0:
+                    proof[0] = -1
+                    break
+                face, edge_a, edge_b = _proof_spheres(proof[j])
+                proof[j] = _proof_code(proof[j] & 7, candidates[face], candidates[edge_a],
+                                       candidates[edge_b])
         else:
+            proof[0] = -1
             proof_rest[s] = PROOF_REST
             out[count] = s
             count += 1

@@ -162,9 +162,10 @@ def mesh_vertices(pos, strips, lod, head, pose, scratch, out):
     Write the U-shape vertices of the strips drawn (all, or those seen); return how many.
 
     One call from Python a frame: a call's bundled arguments cost about 1 us to pass,
-    as much as a strip's U-shape. strips is (strip_strands, sigma, proof_rest), lod (along,
-    across), head (scalp spheres, occluding spheres shrunk a shade, projection centre, all
-    head frame, then rs, delta, max_dist, fix_len), pose (R, p, eye, cull): with cull only
+    as much as a strip's U-shape. strips is (strip_strands, sigma, proof_rest, proofs)
+    (culling.visible_strips), lod (along, across), head (scalp spheres, occluding spheres
+    shrunk a shade, projection centre, all head frame, then rs, delta, max_dist, fix_len),
+    pose (R, p, eye, cull): with cull only
     the strips that may be seen from the eye (world) are drawn (culling.visible_strips).
     scratch is (world (scalp, occluding spheres, centre; the eye in the head frame last
     call), culling's, ushape's); out
@@ -231,7 +232,10 @@ class HairRenderer:
         self._out = np.zeros((self.n_strips, self.lod.verts_per_strip, 3))
         self._flags = np.zeros((self.n_strips, 2, self.lod.rows), dtype=np.int64)
         self._vis = np.zeros(self.n_strips, dtype=np.int64)   # drawn strips, culling writes
-        self._proof_rest = np.zeros(self.n_strips, dtype=np.int64)   # culling's, kept
+        # what culling keeps from call to call: the strips it draws unproven, and the
+        # certificates of those it proved hidden
+        self._proof_rest = np.zeros(self.n_strips, dtype=np.int64)
+        self._proofs = np.full((self.n_strips, rest.shape[1] - 1), -1, dtype=np.int64)
         self._culled = None             # (strips as bytes, their triangles), last culled mesh
         # the head's spheres in its frame, and their world copies the kernels write
         occ = np.array(head.collision, dtype=np.float64)
@@ -293,7 +297,7 @@ class HairRenderer:
         """Return the indices of the strips that may be seen from `viewpoint` (world)."""
         count = seen_strips(
             pos,
-            (self.strip_strands, self.sigma, self._proof_rest),
+            (self.strip_strands, self.sigma, self._proof_rest, self._proofs),
             self._head,
             (_f64(R), _f64(p), _f64(viewpoint)),
             self._scratch,
@@ -309,7 +313,7 @@ class HairRenderer:
         """
         k = mesh_vertices(
             pos,
-            (self.strip_strands, self.sigma, self._proof_rest),
+            (self.strip_strands, self.sigma, self._proof_rest, self._proofs),
             (self.lod.along, self.lod.across),
             self._head,
             (_f64(R), _f64(p), self._no_eye if viewpoint is None else _f64(viewpoint),

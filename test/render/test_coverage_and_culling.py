@@ -80,6 +80,40 @@ def test_culling_of_every_style_never_drops_a_strip_a_ray_hits(name):
     assert culled_any > 0
 
 
+@pytest.mark.parametrize('name', SHIPPED)
+def test_certificates_kept_from_frame_to_frame_never_drop_a_strip_a_ray_hits(name):
+    """
+    A renderer that keeps its certificates while the head shakes culls soundly.
+
+    Culling checks a strip it proved hidden at the last call by that proof's certificate
+    first (culling.certificate_holds), against the strands and head as they are now. Mesh
+    every frame of a head shake from two fixed eyes, and every few frames ask a ray
+    caster: every strip a ray hits is drawn, and strips hidden by a kept certificate were
+    culled on the way.
+    """
+    sim = HairSimulator(load_hairstyle(paths.shipped_style(name)))
+    eyes = [np.array([0.8, 0.0, 0.0]), np.array([-0.3, 0.6, 0.2])]
+    kept = [HairRenderer.for_simulator(sim) for _ in eyes]
+    certified = 0
+    for i in range(64):
+        _shake_step(sim, i)
+        R, p = sim.head_pose
+        for eye, renderer in zip(eyes, kept):
+            had = renderer._proofs[:, 0] >= 0              # certificates from the last call
+            drawn = renderer.mesh(sim.pos, R, p, viewpoint=eye)
+            hidden = np.ones(renderer.n_strips, dtype=bool)
+            hidden[drawn.strip_ids] = False
+            certified += int((had & hidden).sum())
+            if i % 16 == 15:
+                full = renderer.mesh(sim.pos, R, p)
+                spheres = sim.head.collision.copy()
+                spheres[:, :3] = spheres[:, :3] @ R.T + p
+                cam = Camera(eye, p + [0.0, 0.0, -0.05], fov_deg=40, width=256, height=256)
+                seen = visible_strip_ids(full, spheres, cam)
+                assert seen <= set(drawn.strip_ids.tolist()), (i, eye, seen)
+    assert certified > 0
+
+
 def test_culling_remembers_failed_proofs_only_to_draw_more_and_only_for_a_while():
     """
     Culling's memory of failed proofs only adds strips, for at most PROOF_REST calls.
