@@ -55,13 +55,15 @@ PROOF_REST = 8
 # A strip proven hidden keeps its proof's certificate, per row pair the level that held
 # it and the spheres: one sphere for the row and every wall it could have (by the fix-up
 # length, a sphere that holds S; or by wall_extents), or one for the face and one for each
-# edge with its wall (by how far the walls reach, or by their bottoms worked out). The
-# next call checks that first (certificate_holds): the proof again, without the search
-# that found it. A row held only piece by piece after splits gives no certificate.
+# edge with its wall (by how far the walls reach, or by their bottoms worked out); or
+# that it was held piece by piece after splits. The next call checks that first
+# (certificate_holds): the proof again, without the search that found it (for a split
+# row, the cheaper levels' search).
 PROOF_FIX_UP = 1
 PROOF_EXTENTS = 2
 PROOF_REACH = 3
 PROOF_BOTTOMS = 4
+PROOF_SPLITS = 5         # (its sphere only where the search starts: the pieces are searched)
 
 
 @njit_without_refcounts
@@ -423,7 +425,7 @@ def _vertex_held(pos, st, r, rho, shadows, k):
 
 
 @njit_without_refcounts
-def certificate_holds(pos, strip, proof, walls, shadows, grow):
+def certificate_holds(pos, strip, proof, walls, shadows, grow, work):
     """
     Return the sphere that held a strip's last row under its certificate, or -1.
 
@@ -433,9 +435,11 @@ def certificate_holds(pos, strip, proof, walls, shadows, grow):
     worked out again) and the fix-up length (the sphere must hold the projection sphere S)
     or their wall_extents, lie in one shadow (as _held_with_any_walls); or the face in one
     and each edge with its wall, the walls' reach or bottoms worked out again, in one each
-    (as _pieces_held). That is a proof by itself, of the strands as they are now; the search
-    for the spheres is what it saves. strip is (s, strip_strands, sigma_s); walls and
-    grow as _strip_hidden takes them; shadows (eye, cones, which spheres hold S).
+    (as _pieces_held); or, for a row that needed splits, its pieces are searched again
+    (_row_held_in_pieces), skipping the cheaper levels. That is a proof by itself, of the
+    strands as they are now; the search for the spheres is what it saves. strip is (s,
+    strip_strands, sigma_s); walls and grow as _strip_hidden takes them; shadows (eye,
+    cones, which spheres hold S); work quad_in_shadow's pieces.
     """
     s, strip_strands, sigma_s = strip
     projection, bottoms, reach, worked, spans = walls
@@ -470,6 +474,16 @@ def certificate_holds(pos, strip, proof, walls, shadows, grow):
             checked = code
             continue
         checked = -1
+        if level == PROOF_SPLITS:
+            for r in range(j, j + 2):
+                if not worked[1, r]:
+                    strip_wall_bottoms(pos, strip_strands, s, sigma_s, projection, (r, r),
+                                       bottoms, spans)
+                    worked[1, r] = True
+            k = _row_held_in_pieces(pos, (a, b, bottoms), j, grow, (eye, cones), face, work)
+            if k < 0:
+                return -1
+            continue
         extra = projection.fix_len if level == PROOF_REACH else 0.0
         for r in range(j, j + 2):                # the face: the four corners' balls
             for q in range(2):
@@ -501,7 +515,7 @@ def _strip_hidden(pos, strip, walls, grow, shadows, first, work, proof):
     Return a sphere that held the last piece of a hidden strip, or -1 if it may be seen.
 
     proof (V - 1,) gets each row pair's certificate (_proof_code: its level and the
-    candidates that held it), or -2 for a row held only after splits.
+    candidates that held it).
     strip is (s, strip_strands, sigma_s); walls (projection, bottoms, reach, which rows
     have them worked out (2, V), the projection's scratch); grow (the deviations (2, V),
     scratch for wall_extents); shadows (eye, the candidates' cones, which of them hold
@@ -535,7 +549,6 @@ def _strip_hidden(pos, strip, walls, grow, shadows, first, work, proof):
             k = held
             proof[j] = _proof_code(PROOF_EXTENTS, held, held, held)
             continue
-        proof[j] = -2                            # (unless a level below holds it)
         for r in range(j, j + 2):
             if not worked[0, r]:
                 strip_wall_reach(pos, strip_strands, s, projection, (r, r), reach)
@@ -557,17 +570,33 @@ def _strip_hidden(pos, strip, walls, grow, shadows, first, work, proof):
             k = edge_b
             proof[j] = _proof_code(PROOF_BOTTOMS, face, edge_a, edge_b)
             continue
-        rho = max(grow[0, j], grow[0, j + 1], grow[1, j], grow[1, j + 1])
-        _set_quad(work, pos, a, pos, b, j)       # the face between the edges
-        k = quad_in_shadow(work, rho, eye, cones, k)
+        k = _row_held_in_pieces(pos, (a, b, bottoms), j, grow, (eye, cones), k, work)
         if k < 0:
             return -1
-        for q in range(2):                       # each edge with its wall
-            st = a if q == 0 else b
-            _set_quad(work, pos, st, bottoms, st, j)
-            k = quad_in_shadow(work, max(grow[q, j], grow[q, j + 1]), eye, cones, k)
-            if k < 0:
-                return -1
+        proof[j] = _proof_code(PROOF_SPLITS, k, k, k)
+    return k
+
+
+@njit_without_refcounts
+def _row_held_in_pieces(pos, strip, j, grow, shadows, first, work):
+    """
+    Return a sphere that held the last piece of rows j, j + 1 split as needed, or -1.
+
+    The face between the edges, and each edge with its wall down to its bottoms, each
+    held as quad_in_shadow holds a patch (split at most MAX_SPLITS deep). strip is
+    (strands a, b, wall bottoms); shadows (eye, cones); first the sphere tried first.
+    """
+    a, b, bottoms = strip
+    eye, cones = shadows
+    rho = max(grow[0, j], grow[0, j + 1], grow[1, j], grow[1, j + 1])
+    _set_quad(work, pos, a, pos, b, j)           # the face between the edges
+    k = quad_in_shadow(work, rho, eye, cones, first)
+    for q in range(2):                           # each edge with its wall
+        if k < 0:
+            return -1
+        st = a if q == 0 else b
+        _set_quad(work, pos, st, bottoms, st, j)
+        k = quad_in_shadow(work, max(grow[q, j], grow[q, j + 1]), eye, cones, k)
     return k
 
 
@@ -667,7 +696,7 @@ def _visible_strips_into(pos, strips, walls, shadows, scratch, candidates_scratc
         proof = proofs[s]
         if proof[0] >= 0:                        # hidden last call, by a cheap proof
             held = certificate_holds(pos, (s, strip_strands, sigma[s]), proof, walls, shadows,
-                                     (grow, fix_ups, extents))
+                                     (grow, fix_ups, extents), work)
             if held >= 0:
                 last = held
                 continue
@@ -763,11 +792,8 @@ def _visible_strips_into(pos, strips, walls, shadows, scratch, candidates_scratc
                                  proof)
         if held >= 0:
             last = candidates[held]
-            # the certificate, in the spheres' own numbers (none if a row needed more)
+            # the certificate, in the spheres' own numbers
             for j in range(V - 1):
-                if proof[j] < 0:
-                    proof[0] = -1
-                    break
                 face, edge_a, edge_b = _proof_spheres(proof[j])
                 proof[j] = _proof_code(proof[j] & 7, candidates[face], candidates[edge_a],
                                        candidates[edge_b])
