@@ -144,6 +144,7 @@ def hanging_section(rows):
         r['size'] = '%d x %d' % (r['strands'], r['segments'])
     accuracy = [r for r in rows if not r.get('speed_only')]
     speed = [r for r in rows if r.get('speed_only')]
+    cost = {(r['strands'], r['solver']): r['wall_s_per_sim_s'] for r in speed}
     at_frame = {r['segments']: r for r in accuracy
                 if r['solver'] == 'hair_sim articulated' and r['step'] == '1/60'}
     return ['## Hanging hair against MuJoCo and PyElastica (`hair_sim_bench hanging --json`)',
@@ -192,7 +193,7 @@ def hanging_section(rows):
             '2 cm off the chain\'s, while a small, stiff cantilever agrees within 0.1 % and '
             'the first 0.1 s of the fall within 0.15 mm), so they end 12-13 mm (10 segments)'
             ' and 4.7-5.9 mm (20) from both references at every step. At one step per 60 Hz'
-            ' frame they cost 4.9 s/s at 200 x 20, 11 times the articulated model; at 1000 x'
+            ' frame they cost 4.7 s/s at 200 x 20, 13 times the articulated model; at 1000 x'
             ' 20 MuJoCo could not allocate their collision arena (3 GB asked of 2 GB). The '
             'thesis model cannot drape: its '
             'hinges pull each segment towards an absolute direction, so the strands stay up '
@@ -208,7 +209,7 @@ def hanging_section(rows):
             'frame whole. Against every strand taking the count of the fastest (as before, '
             'measured back to back from a worktree of 422d4cf), the whole 2 s scene at 1/60 s'
             ' went from 1.07 to 0.40 s/s at 200 x 20 and from 7.27 to 1.95 s/s at 1000 x 20 '
-            '(that run; 0.44 and 2.32 in this one); its first 0.5 s (all the strands '
+            '(that run); its first 0.5 s (all the strands '
             'falling, what the speed rows measured before) from 0.75 to 0.52 and from 4.0 '
             'to 2.5. The tips moved too: 1.12 -> 1.87 mm RMS (median 0.36 -> 0.80 mm) on '
             '50 x 10 and 0.47 -> 0.58 mm on 50 x 20 at 1/60 s, because a slow strand no '
@@ -237,9 +238,18 @@ def hanging_section(rows):
             ' window fails in both, see the stress bench). With a factor of 4 the hanging '
             'scene took frames again often (1000 x 20: 3.3 s/s). Without springs every stress'
             ' case gives the same pass or fail as before at 1/60 and 1/240 s (thesis_long, '
-            "inter_strip off; /tmp scripts). The issue's speed target (0.045 s/s at 200 x 20,"
-            " from MuJoCo's flex strands) is still not met: about 3.3 substeps a strand a "
-            'frame at about 0.2-0.35 us per segment-substep.', '']
+            "inter_strip off; /tmp scripts). A frame's substeps are one kernel call "
+            '(`articulated.chain_step`: the forces and the chains with no Python between '
+            'substeps, and no forces worked out for a strand waiting at one), the same '
+            'positions bit for bit (tested against the substeps one by one): back to back '
+            'against 0ac33d3, 0.43 -> 0.37 s/s at 200 x 20 and 2.27 -> 2.01 at 1000 x 20 '
+            '(/tmp script); '
+            + '%.2f and %.2f s/s in this run. ' % (cost[(200, 'hair_sim articulated')],
+                                                   cost[(1000, 'hair_sim articulated')])
+            + "The issue's speed target (0.045 s/s at 200 x 20, from MuJoCo's flex strands)"
+            ' is still not met: about 3.3 substeps a strand a frame over the 2 s fall (1 '
+            'each once the strands hang) at about 0.45 us per segment-substep, forces '
+            'included.', '']
 
 
 def culling_savings(skip):
