@@ -30,10 +30,10 @@ piece by one shadow, or else split at most MAX_SPLITS times. Anything left over 
 The spheres are tried from the one that held the last piece. A strip whose proof failed
 (every simulated vertex in shadow, yet some part may be seen: it lies on the silhouette)
 is drawn without a proof for the next PROOF_REST calls: drawing a strip is always safe, and
-a failed proof costs more than drawing it. A strip proven hidden with every row held by
-one shadow without its walls worked out keeps the proof's certificate (which sphere held
-each row, and by which bound); the next call checks that first (certificate_holds), a
-proof of the strands as they are then, without the search. The test suite checks
+a failed proof costs more than drawing it. A strip proven hidden keeps the proof's
+certificate (per row, by which bound it was held and which spheres held it); the next call
+checks that first (certificate_holds), a proof of the strands as they are then, without
+the search. The test suite checks
 against a ray caster that no culled strip is hit by any ray, on every shipped style, and
 that the wall bounds hold the walls the projection gives.
 """
@@ -694,7 +694,7 @@ def _visible_strips_into(pos, strips, walls, shadows, scratch, candidates_scratc
             continue
         a, b = strip_strands[s, 0], strip_strands[s, 1]
         proof = proofs[s]
-        if proof[0] >= 0:                        # hidden last call, by a cheap proof
+        if proof[0] >= 0:                        # proven hidden last call: check that
             held = certificate_holds(pos, (s, strip_strands, sigma[s]), proof, walls, shadows,
                                      (grow, fix_ups, extents), work)
             if held >= 0:
