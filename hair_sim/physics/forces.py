@@ -389,6 +389,23 @@ def _record_contact(contact, s, i, k, c, normal, lever, sphere, load):
 
 
 @njit_without_refcounts
+def clear_contact_record(contact, moving=None):
+    """
+    Clear the contact record: no slot of any segment holds a contact (stiffness, damping 0).
+
+    moving (n_strands,), if given, is each strand's step: a strand whose step is 0 waits
+    and keeps its record.
+    """
+    for s in range(contact.shape[0]):
+        if moving is not None and moving[s] <= 0.0:
+            continue
+        for i in range(contact.shape[1]):
+            for q in range(CONTACT_SLOTS):
+                contact[s, i, q * CONTACT_FIELDS + CONTACT_K] = 0.0
+                contact[s, i, q * CONTACT_FIELDS + CONTACT_C] = 0.0
+
+
+@njit_without_refcounts
 def reaction_constraint_forces(strands,
                                bodies,
                                k_per_m,
@@ -435,13 +452,7 @@ def reaction_constraint_forces(strands,
     n_s, n_seg = f_dist.shape[0], f_dist.shape[1]
     contacts = 0
     if record_contacts:
-        for s in range(n_s):
-            if moving is not None and moving[s] <= 0.0:
-                continue
-            for i in range(n_seg):
-                for q in range(CONTACT_SLOTS):
-                    contact[s, i, q * CONTACT_FIELDS + CONTACT_K] = 0.0
-                    contact[s, i, q * CONTACT_FIELDS + CONTACT_C] = 0.0
+        clear_contact_record(contact, moving)
     for s in range(n_s):
         if moving is not None and moving[s] <= 0.0:
             continue

@@ -689,10 +689,7 @@ class HairSimulator:
         )
         c['kernel_calls'] += 1
         if self.solver.uses_contacts and not settings.collisions:   # (else the kernel does)
-            slots = self.contact.reshape(self.contact.shape[:2] + (F.CONTACT_SLOTS,
-                                                                   F.CONTACT_FIELDS))
-            slots[..., F.CONTACT_K] = 0.0
-            slots[..., F.CONTACT_C] = 0.0
+            F.clear_contact_record(self.contact)
         if self.solver.springs_before_contacts:
             walls = self._strip_springs_pass(strands, bodies, forces, settings)
         if settings.collisions:

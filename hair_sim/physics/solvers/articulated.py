@@ -92,7 +92,8 @@ from hair_sim.kernels import njit_without_refcounts
 from hair_sim.physics.forces import (CONTACT_C, CONTACT_FIELDS, CONTACT_K, CONTACT_LEVER,
                                      CONTACT_NX, CONTACT_NY, CONTACT_NZ, CONTACT_SLOTS,
                                      CONTACT_LOAD, CONTACT_LOAD_MID, CONTACT_SPHERE,
-                                     explicit_stability_problem, external_forces,
+                                     clear_contact_record, explicit_stability_problem,
+                                     external_forces,
                                      GUARD_LIFT, GUARD_MOVES, guard_segment, MAX_RATE,
                                      place_with_head, reaction_constraint_forces,
                                      Strands, strip_springs)
@@ -1251,12 +1252,7 @@ def chain_step(state,
         external_forces(at_mid, attach.root_acc, settings.gravity, wind, True, t,
                         settings.drag_factor, settings.air_damping, False, forces, strand_h)
         if not settings.collisions:      # (else reaction_constraint_forces clears it)
-            contact = forces.contact
-            for s in range(n_s):
-                for i in range(contact.shape[1]):
-                    for q in range(CONTACT_SLOTS):
-                        contact[s, i, q * CONTACT_FIELDS + CONTACT_K] = 0.0
-                        contact[s, i, q * CONTACT_FIELDS + CONTACT_C] = 0.0
+            clear_contact_record(forces.contact)
         else:
             contacts += reaction_constraint_forces(at_mid,
                                                    bodies,
