@@ -43,7 +43,7 @@ from math import sqrt
 from numba import njit
 import numpy as np
 
-from hair_sim.kernels import njit_without_refcounts
+from hair_sim.kernels import inlined_without_refcounts, njit_without_refcounts
 from hair_sim.render.ushape import strip_wall_bottoms, strip_wall_reach
 
 MARGIN = 1e-4             # m: every corner ball grows by this much
@@ -417,6 +417,28 @@ def _deviations(pos, strands, grow):
     return largest
 
 
+@inlined_without_refcounts
+def _work_out_walls(pos, strip, walls, j, reach_only):
+    """
+    Work out the walls of rows j, j + 1 where not done yet for this strip.
+
+    With reach_only, how far they can reach (strip_wall_reach, into reach; worked[0]);
+    else their bottoms (strip_wall_bottoms, into bottoms; worked[1]). strip and walls as
+    _strip_hidden takes them.
+    """
+    s, strip_strands, sigma_s = strip
+    projection, bottoms, reach, worked, spans = walls
+    w = 0 if reach_only else 1
+    for r in range(j, j + 2):
+        if not worked[w, r]:
+            if reach_only:
+                strip_wall_reach(pos, strip_strands, s, projection, (r, r), reach)
+            else:
+                strip_wall_bottoms(pos, strip_strands, s, sigma_s, projection, (r, r),
+                                   bottoms, spans)
+            worked[w, r] = True
+
+
 @njit_without_refcounts
 def _vertex_held(pos, st, r, rho, shadows, k):
     """Return whether the ball of radius rho around vertex r of strand st is in shadow k."""
@@ -475,11 +497,7 @@ def certificate_holds(pos, strip, proof, walls, shadows, grow, work):
             continue
         checked = -1
         if level == PROOF_SPLITS:
-            for r in range(j, j + 2):
-                if not worked[1, r]:
-                    strip_wall_bottoms(pos, strip_strands, s, sigma_s, projection, (r, r),
-                                       bottoms, spans)
-                    worked[1, r] = True
+            _work_out_walls(pos, strip, walls, j, False)
             k = _row_held_in_pieces(pos, (a, b, bottoms), j, grow, (eye, cones), face, work)
             if k < 0:
                 return -1
@@ -489,14 +507,7 @@ def certificate_holds(pos, strip, proof, walls, shadows, grow, work):
             for q in range(2):
                 if not _vertex_held(pos, strands[q], r, grow[q, r], shadows, face):
                     return -1
-        for r in range(j, j + 2):                # the walls' ends of the two rows
-            if level == PROOF_REACH and not worked[0, r]:
-                strip_wall_reach(pos, strip_strands, s, projection, (r, r), reach)
-                worked[0, r] = True
-            if level == PROOF_BOTTOMS and not worked[1, r]:
-                strip_wall_bottoms(pos, strip_strands, s, sigma_s, projection, (r, r),
-                                   bottoms, spans)
-                worked[1, r] = True
+        _work_out_walls(pos, strip, walls, j, level == PROOF_REACH)   # the walls' ends
         ends = reach if level == PROOF_REACH else bottoms
         for q in range(2):                       # each edge with its wall
             st = strands[q]
@@ -549,21 +560,14 @@ def _strip_hidden(pos, strip, walls, grow, shadows, first, work, proof):
             k = held
             proof[j] = _proof_code(PROOF_EXTENTS, held, held, held)
             continue
-        for r in range(j, j + 2):
-            if not worked[0, r]:
-                strip_wall_reach(pos, strip_strands, s, projection, (r, r), reach)
-                worked[0, r] = True
+        _work_out_walls(pos, strip, walls, j, True)
         face, edge_a, edge_b = _pieces_held(depth, (a, b, reach), (j, projection.fix_len),
                                             grow, (eye, cones), k)
         if edge_b >= 0:
             k = edge_b
             proof[j] = _proof_code(PROOF_REACH, face, edge_a, edge_b)
             continue
-        for r in range(j, j + 2):
-            if not worked[1, r]:
-                strip_wall_bottoms(pos, strip_strands, s, sigma_s, projection, (r, r),
-                                   bottoms, spans)
-                worked[1, r] = True
+        _work_out_walls(pos, strip, walls, j, False)
         face, edge_a, edge_b = _pieces_held(depth, (a, b, bottoms), (j, 0.0), grow,
                                             (eye, cones), k)
         if edge_b >= 0:
