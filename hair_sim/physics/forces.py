@@ -180,7 +180,7 @@ def place_with_head(head, attach, bodies, collisions, broad_phase):
 
 
 @njit_without_refcounts
-def _winds_at_middles(pos, t, wind, out):
+def _winds_at_middles(pos, t, wind, out, moving=None, strand_t=None):
     """
     Write the wind velocity at each strand's middle vertex into out[s, 0].
 
@@ -188,21 +188,31 @@ def _winds_at_middles(pos, t, wind, out):
     along each mode's direction. Each mode's phase at t is reduced modulo 2 pi once, so
     that the argument stays a few radians whatever the time; at each strand the modes'
     sines are one loop over the modes with sin_vectorizable (vectorised: libm's sine is
-    not, and it was half of this kernel's time with gusts), summed after.
+    not, and it was half of this kernel's time with gusts), summed after. With strand_t
+    (n_strands,), strand s's time is strand_t[s] (the phases are worked out again where it
+    changes from one strand to the next); a strand whose moving[s] is 0 is skipped.
     """
     base = wind.velocity
     amp = wind.amplitude
     mdir, k, mw, mph = wind.mode_dir, wind.mode_k_by_axis, wind.mode_w, wind.mode_phase
     phase, gust = wind.scratch[0], wind.scratch[1]
     n_modes = mw.shape[0]
-    for m in range(n_modes):
-        phase[m] = mph[m] - np.fmod(mw[m] * t, 2.0 * pi)
+    phase_t = np.nan                             # the time the phases are of (none yet)
     mid_v = pos.shape[1] // 2
     for s in range(pos.shape[0]):
+        if moving is not None and moving[s] <= 0.0:
+            continue
         wx, wy, wz = base[0], base[1], base[2]
         if amp <= 0.0:                           # a steady wind
             out[s, 0, 0], out[s, 0, 1], out[s, 0, 2] = wx, wy, wz
             continue
+        ts = t
+        if strand_t is not None:
+            ts = strand_t[s]
+        if ts != phase_t:
+            for m in range(n_modes):
+                phase[m] = mph[m] - np.fmod(mw[m] * ts, 2.0 * pi)
+            phase_t = ts
         x, y, z = pos[s, mid_v, 0], pos[s, mid_v, 1], pos[s, mid_v, 2]
         for m in range(n_modes):
             gust[m] = amp * sin_vectorizable(k[0, m] * x + k[1, m] * y + k[2, m] * z + phase[m])
@@ -226,7 +236,7 @@ def external_forces(strands,
                     air_damping,
                     root_inertia,
                     forces,
-                    moving=None):
+                    multirate=None):
     """
     Set the distributed force of every segment (eq. 5) and clear the end forces.
 
@@ -238,16 +248,21 @@ def external_forces(strands,
     gusts' wavelengths (0.5 - 3 m) are longer than a strand, so the turbulence is evaluated
     once per strand, at its middle vertex.
 
-    moving (n_strands,), if given, is each strand's step: a strand whose step is 0 waits
-    (the articulated model's multirate substeps) and its forces are left as they are.
+    multirate, if given, is (steps, times) when strands take substeps of their own
+    lengths (the articulated model): each strand's step, 0 where it waits (its forces are
+    then left as they are), and the end of its own substep, its time for the wind instead
+    of t (or None: t).
     """
     pos, vel, length, mass = strands.pos, strands.vel, strands.length, strands.mass
     f_dist, f_end = forces.f_dist, forces.f_end
     n_s, n_seg = mass.shape
     if wind_on:                  # each strand's wind, held in f_end[s, 0] until cleared
-        _winds_at_middles(pos, t, wind, f_end)
+        if multirate is None:
+            _winds_at_middles(pos, t, wind, f_end)
+        else:
+            _winds_at_middles(pos, t, wind, f_end, multirate[0], multirate[1])
     for s in range(n_s):
-        if moving is not None and moving[s] <= 0.0:
+        if multirate is not None and multirate[0][s] <= 0.0:
             continue
         ax, ay, az = gravity[0], gravity[1], gravity[2]
         if root_inertia:

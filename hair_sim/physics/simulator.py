@@ -437,8 +437,9 @@ class HairSimulator:
         finite = self._simulated(t, h)
         if saved is not None:
             # a contact or a whip the substep count did not foresee: take the step again
-            # from the saved state, every strand at the finest count: RETRY_SUBSTEP_FACTOR
-            # times it when the state came out non-finite; again (see below) when a strand
+            # from the saved state: at RETRY_SUBSTEP_FACTOR times the finest count when the
+            # state came out non-finite (every strand, or, strands not joined by springs,
+            # each that did, the others at their counts); at the counts below when a strand
             # ended the step swinging OUTRAN_FACTOR times faster than its count allows (a
             # blow-up that has not reached inf yet: in the stress bench's gale without
             # inter-strip springs, a strand taking 32 substeps where the finest took 256
@@ -448,18 +449,33 @@ class HairSimulator:
             again = None
             if not finite:
                 again = RETRY_SUBSTEP_FACTOR * finest
-            elif self.solver.outran(h, counts).any():
-                # strands at their own counts take the finest; strands that all took the
-                # finest already, what the fastest swing at the step's end needs: a style
-                # at rest (1 substep) hit by a 30 m/s gale and a violent start ended its
-                # first 1/60 s step at 500 rad/s, unretried, and the next step diverged
-                # at any count (thesis_short and bob_fringe, `hair_sim_bench settle`)
-                again = finest if np.min(counts) < finest else \
-                    max(finest, int(np.max(self.solver.substeps_for(h))))
+                if not self._joined():             # (strands apart: the others as they were)
+                    spoiled = ~np.isfinite(self.pos[:, -1]).all(axis=1)
+                    if spoiled.any():
+                        again = np.where(spoiled, again, counts)
+            else:
+                outran = self.solver.outran(h, counts)
+                if outran.any():
+                    # what the swings at the step's end need. Strands joined by springs
+                    # (sharing a count) take the most any needs: a style at rest (1
+                    # substep) hit by a 30 m/s gale and a violent start ended its first
+                    # 1/60 s step at 500 rad/s, unretried, and the next step diverged at
+                    # any count (thesis_short and bob_fringe, `hair_sim_bench settle`).
+                    # Strands at their own counts: each that outran its count takes what
+                    # its own swing needs, the others their counts again, so that each
+                    # still moves as it would alone (every strand at the finest, as
+                    # before, let the hanging scene's top strand, the finest at 16, end a
+                    # step at 5e5 rad/s, take it at 16 again, and diverge the next step:
+                    # 200 x 20 at 1/60 s)
+                    need = self.solver.substeps_for(h)
+                    if self._joined():
+                        again = max(finest, int(np.max(need)))
+                    else:
+                        again = np.where(outran, np.maximum(need, counts), counts)
             if again is not None:
                 self._restore(saved)
                 self.counters['retried_steps'] += 1
-                finite = self._simulated(t, h, again, shared=True)
+                finite = self._simulated(t, h, again, shared=np.ndim(again) == 0)
         if not finite:
             self.counters['diverged'] += 1
             self.reset()
@@ -491,30 +507,23 @@ class HairSimulator:
 
         A model may ask for the step to be split per strand (the articulated chain does
         where a segment would turn too far in one step), into at least `at_least`
-        substeps; every substep recomputes the forces.
+        substeps (one for all, or each strand's); every substep recomputes the forces.
         When inter-strip springs join strands (every shipped style), every strand takes
         the largest count, as before multirate: giving each group of joined strands its
         own (tried) left the stress bench's articulated gale as it was but made its random
         motion end with strands balanced that fell during the 4 s sleep window, at 1/1000
         and 1/60 s (the hold itself took 1 substep a strand: the trajectory changed, not
-        the stability). Strands on their own (no springs) each take their count rounded
-        up to a power of two (multirate): the step runs as many substeps as the finest
-        strand takes, and each strand moves at the substeps where one of its own ends, by
-        its own length (waiting at the others), so a strand at rest beside a whipping one
-        takes the step whole, exactly as it would alone (strands that all need the same
-        count take it as it is; `shared` makes every strand take the largest). Returns
-        each strand's count.
+        the stability). Strands on their own (no springs) each take their own count
+        (multirate): the step runs as many substeps as the finest strand takes, and each
+        strand moves at the substeps in which one of its own ends, by its own length
+        (waiting at the others), with the wind of its own substep's end, so a strand at
+        rest beside a whipping one takes the step whole, exactly as it would alone
+        (`shared` makes every strand take the largest). Returns each strand's count.
         """
-        counts = self.solver.substeps_for(h)
-        if at_least > 1:
-            counts = np.maximum(counts, at_least)
+        counts = np.maximum(self.solver.substeps_for(h), at_least)
         n = int(counts.max())
-        if n > 1:
-            if shared or counts.min() == n or (self.params.inter_strip and len(self.pairs)):
-                counts = np.full_like(counts, n)
-            else:
-                counts = np.left_shift(1, np.ceil(np.log2(counts)).astype(np.int64))
-                n = int(counts.max())
+        if n > 1 and (shared or self._joined()):
+            counts = np.full_like(counts, n)
         if self.solver.whole_step:                 # every substep in one kernel call
             self._whole_step(t, h, n, counts)
         elif n == 1:                               # (the usual step: whole)
@@ -522,16 +531,19 @@ class HairSimulator:
             self._substep(t - h + h / n, h, whole, whole)
         else:
             own_h = h / counts
-            stride = n // counts
-            strand_h = np.empty_like(own_h)
-            for k in range(n):
-                np.copyto(strand_h, own_h)
-                strand_h[(k + 1) % stride != 0] = 0.0
-                self._substep(t - h + (k + 1) * h / n, h / n, strand_h, own_h)
+            for k in range(n):                     # (as articulated.chain_step)
+                ended = (k + 1) * counts // n      # of each strand's own substeps
+                strand_h = np.where(ended > k * counts // n, own_h, 0.0)
+                strand_t = t - h + ended * h / counts
+                self._substep(t - h + (k + 1) * h / n, h / n, strand_h, own_h, strand_t)
         self.counters['substeps'] += n
         self.counters['strand_substeps'] += int(counts.sum())
         self._last_substeps = counts
         return counts
+
+    def _joined(self):
+        """Return whether inter-strip springs join strands (they then share a count)."""
+        return bool(self.params.inter_strip and len(self.pairs))
 
     def _simulated(self, t, h, at_least=1, shared=False):
         """Run _simulate; return whether the state came out finite."""
@@ -585,12 +597,13 @@ class HairSimulator:
         self._constants_of = p
         self._springs_rest3 = self.rest3
 
-    def _substep(self, t, h, strand_h, own_h):
+    def _substep(self, t, h, strand_h, own_h, strand_t=None):
         """
         One substep of length h ending at t: strand i moves by strand_h[i] (0: it waits).
 
-        own_h[i] is strand i's own substep, the one it is in (forces at its middle). A
-        fused model (one kernel call for the whole step) takes every strand by h.
+        own_h[i] is strand i's own substep, the one it is in (forces at its middle), and
+        strand_t[i], if given, when it ends (the wind's time; else t). A fused model (one
+        kernel call for the whole step) takes every strand by h.
         """
         c = self.counters
         head, bodies, settings = self._kernel_inputs(t)
@@ -600,14 +613,15 @@ class HairSimulator:
             c['kernel_calls'] += 1
         else:
             checks, contacts, walls, segments = self._substep_by_kernel(strand_h, own_h, head,
-                                                                        bodies, settings)
+                                                                        bodies, settings,
+                                                                        strand_t)
         self._count_substeps(1, h, (checks, contacts, walls, segments))
 
     def _whole_step(self, t, h, n, counts):
         """
         Take a step of n substeps ending at t in one call of the model's kernel (whole_step).
 
-        Strand i takes counts[i] of them (dividing n), each h / counts[i] long, as _simulate
+        Strand i takes counts[i] of them (at most n), each h / counts[i] long, as _simulate
         does one by one.
         """
         head, bodies, settings = self._kernel_inputs(t - h + h / n)
@@ -654,7 +668,7 @@ class HairSimulator:
         )
         return head, bodies, settings
 
-    def _substep_by_kernel(self, strand_h, own_h, head, bodies, settings):
+    def _substep_by_kernel(self, strand_h, own_h, head, bodies, settings, strand_t=None):
         """Run the shared force kernels one by one, then the model's step (see _substep)."""
         c = self.counters
         attach = self.attachment
@@ -685,7 +699,7 @@ class HairSimulator:
             settings.air_damping,
             self.solver.root_inertia,
             forces,
-            strand_h,
+            (strand_h, strand_t),
         )
         c['kernel_calls'] += 1
         if self.solver.uses_contacts and not settings.collisions:   # (else the kernel does)

@@ -781,13 +781,13 @@ def test_each_strand_moves_at_its_own_rate_as_if_alone():
     Multirate: strands with no springs between them each move as they would alone.
 
     A strand taking 1 substep beside one taking many moves exactly as it does when both
-    take 1, and the whipping one exactly as when both take its count (rounded up to a power
-    of two); all start from the same state.
+    take 1, and the whipping one exactly as when both take its count; all start from the
+    same state.
     """
     mixed, slow, fast = (_two_strands(False) for _ in range(3))
     need = mixed.solver.substeps_for(DEFAULT_DT)
     assert need[0] == 1 and need[1] > 2
-    n = 1 << int(np.ceil(np.log2(need[1])))
+    n = need[1]
     slow.solver.substeps_for = lambda h: np.array([1, 1])
     fast.solver.substeps_for = lambda h: np.array([n, n])
     for sim in (mixed, slow, fast):
@@ -801,18 +801,58 @@ def test_each_strand_moves_at_its_own_rate_as_if_alone():
     assert not np.array_equal(mixed.pos[0], fast.pos[0])
 
 
-def test_a_strand_that_outran_its_substeps_has_the_step_taken_again_shared():
+@pytest.mark.parametrize('whole_step', [True, False])
+@pytest.mark.parametrize('spins', [(30.0, 54.0), (78.0, 42.0), (66.0, 102.0)])
+def test_strands_whose_counts_do_not_divide_each_move_as_if_alone(spins, whole_step):
     """
-    A finite blow-up in a multirate step: the step is taken again, every strand finest.
+    Strands needing 3 and 5 substeps (7 and 4; 6 and 9) each move exactly as alone.
+
+    In turbulent wind, so that each strand's forces must be those of its own substeps'
+    times too (a strand's substeps end between the finest one's); over several steps, its
+    twin taking its count for both strands. Both the one-call step and the kernels one by
+    one.
+    """
+    def strands():
+        sim = _two_strands(False)
+        sim.set_wind([3.0, 1.0, 0.0], turbulence=0.8, seed=3)
+        sim.solver.omega[:] = 0.0
+        sim.solver.omega[0, :, 0], sim.solver.omega[1, :, 0] = spins
+        sim.solver.whole_step = whole_step
+        return sim
+
+    mixed, first, second = strands(), strands(), strands()
+    for twin, s in ((first, 0), (second, 1)):
+        counts_of = twin.solver.substeps_for
+        twin.solver.substeps_for = (lambda f, k: lambda h: np.full(2, f(h)[k]))(counts_of, s)
+    counts = []
+    for _ in range(4):
+        for sim in (mixed, first, second):
+            sim.step(DEFAULT_DT)
+        counts.append(list(mixed._last_substeps))
+        assert mixed.counters['retried_steps'] == 0
+        assert np.array_equal(mixed.pos[0], first.pos[0])
+        assert np.array_equal(mixed.solver.omega[0], first.solver.omega[0])
+        assert np.array_equal(mixed.pos[1], second.pos[1])
+        assert np.array_equal(mixed.solver.omega[1], second.solver.omega[1])
+    a, b = counts[0]
+    assert a > 1 and b > 1 and max(a, b) % min(a, b) != 0, counts      # the case meant
+    assert mixed.counters['strand_substeps'] == 2 + sum(map(sum, counts))   # (+ set-up)
+
+
+def test_a_strand_that_outran_its_substeps_takes_the_step_again_at_what_it_needs():
+    """
+    A finite blow-up in a multirate step: that strand takes the step again, finer.
 
     After the step's last substep the slow strand (1 substep) is flung to 1e4 rad/s, far
     more than OUTRAN_FACTOR times what its count allows; the simulator must restore the
-    step's state and take it again with every strand at the whipping one's count, which
-    must give exactly what a twin gets taking that shared count in the first place.
+    step's state and take it again with that strand at what its swing at the step's end
+    needs (here MAX_SUBSTEPS) and the whipping one at its own count again, which must give
+    exactly what a twin gets taking those counts in the first place.
     """
     spoiled, twin = _two_strands(False), _two_strands(False)
-    need = spoiled.solver.substeps_for(DEFAULT_DT)
-    n = 1 << int(np.ceil(np.log2(need[1])))
+    n = spoiled.solver.substeps_for(DEFAULT_DT)[1]
+    finest = articulated.MAX_SUBSTEPS
+    assert 1 < n < finest
     real_step = spoiled.solver.step
     calls = []
 
@@ -825,11 +865,47 @@ def test_a_strand_that_outran_its_substeps_has_the_step_taken_again_shared():
 
     spoiled.solver.step = fling_at_the_end
     spoiled.solver.whole_step = False     # (the fault goes in between substeps)
-    twin.solver.substeps_for = lambda h: np.array([n, n])
+    twin.solver.substeps_for = lambda h: np.array([finest, n])
     for sim in (spoiled, twin):
         sim.step(DEFAULT_DT)
     assert spoiled.counters['retried_steps'] == 1
-    assert len(calls) == 2 * n and (calls[0][0] == 0.0) and (calls[-1] > 0.0).all()
+    assert list(spoiled._last_substeps) == [finest, n]
+    assert len(calls) == n + finest and (calls[0][0] == 0.0) and (calls[-1] > 0.0).all()
+    assert np.array_equal(spoiled.pos, twin.pos)
+    for a, b in zip(spoiled.solver.step_state(), twin.solver.step_state()):
+        assert np.array_equal(a, b)
+
+
+def test_a_strand_apart_that_blows_up_alone_is_taken_again_finer_the_other_as_it_was():
+    """
+    A non-finite strand among strands with no springs: only it takes the step finer.
+
+    The whipping strand's tip and angular velocities are spoiled (NaN) at the first try's
+    last substep; the simulator must restore the step and take it again with that strand
+    at RETRY_SUBSTEP_FACTOR times the finest count and the slow one at its own count,
+    which must give exactly what a twin gets taking those counts in the first place.
+    """
+    from hair_sim.physics.simulator import RETRY_SUBSTEP_FACTOR
+    spoiled, twin = _two_strands(False), _two_strands(False)
+    n = spoiled.solver.substeps_for(DEFAULT_DT)[1]
+    real_step = spoiled.solver.step
+    calls = []
+
+    def spoil_at_the_end(sim, strand_h, head):
+        out = real_step(sim, strand_h, head)
+        calls.append(strand_h.copy())
+        if len(calls) == n:                        # the first try's last substep
+            sim.pos[1, -1] = np.nan
+            spoiled.solver.omega[1] = np.nan
+        return out
+
+    spoiled.solver.step = spoil_at_the_end
+    spoiled.solver.whole_step = False     # (the fault goes in between substeps)
+    twin.solver.substeps_for = lambda h: np.array([1, RETRY_SUBSTEP_FACTOR * n])
+    for sim in (spoiled, twin):
+        sim.step(DEFAULT_DT)
+    assert spoiled.counters['retried_steps'] == 1
+    assert list(spoiled._last_substeps) == [1, RETRY_SUBSTEP_FACTOR * n]
     assert np.array_equal(spoiled.pos, twin.pos)
     for a, b in zip(spoiled.solver.step_state(), twin.solver.step_state()):
         assert np.array_equal(a, b)

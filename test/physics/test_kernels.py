@@ -188,8 +188,8 @@ def test_one_call_chain_step_equals_the_substeps_one_by_one():
 
     Bit for bit, with the substep counts each takes: a style (inter-strip springs, every
     strand at the finest count) through violent motion, wind, a parameter change and a new
-    layout; and the hanging-hair scene (no springs: strands at their own counts, waiting
-    at the others, whose forces are then not worked out).
+    layout; and the hanging-hair scene in a gusty wind (no springs: strands at their own
+    counts, waiting at the others, whose forces are then not worked out).
     """
     from hair_sim import HairSimulator, load_hairstyle, paths
     from hair_sim.bench import hanging
@@ -207,6 +207,7 @@ def test_one_call_chain_step_equals_the_substeps_one_by_one():
                                          **hanging.scene_params('articulated'))
         sim.solver.whole_step = whole_step
         sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+        sim.set_wind([2.0, 0.5, 0.0], turbulence=0.5, seed=2)   # (each strand's own time)
         for _ in range(30):
             sim.step(1.0 / 60.0)
         sims.append(sim)

@@ -112,8 +112,8 @@ MAX_STEP_ROTATION = 0.05
 # frame (tips near 300 rad/s) ran out of substeps and bob_fringe diverged twice in 3 s
 MAX_SUBSTEPS = 256
 # a strand that ends a step needing more than this many times the substeps it took has
-# outrun its count (`outran`): the simulator takes the step again, shared, at least at
-# the count the swings at its end need
+# outrun its count (`outran`): the simulator takes the step again at the count the swing
+# at its end needs (strands joined by springs: all of them, at the most any needs)
 OUTRAN_FACTOR = 16
 # rad of spring deflection a joint may need to hold its style (sag-free offsets); beyond it
 # the joint is stiffened: measured, offsets past ~1 rad (up to 7.9 on the long styles,
@@ -1212,6 +1212,7 @@ def chain_step(state,
                step,
                counts,
                strand_h,
+               strand_t,
                stats,
                scratch):
     """
@@ -1223,11 +1224,12 @@ def chain_step(state,
     then per substep the shared forces of eqs. 5 and 7-11 at each strand's mid-step
     configuration x + (own h / 2) v, the springs of 5.2 after the contacts, and
     step_chains. step is (t at the step's end, h, n substeps, whether the forces are taken
-    at mid-step (forces_at_mid_step) or at the start); counts[s] divides n, and
-    strand s moves by h / counts[s] at every (n / counts[s])-th substep (multirate),
-    waiting at the others; strand_h is scratch (n_strands,). springs is (StripSprings,
-    SpringConstants). Returns (broad-phase checks, contacts, wall springs, segments
-    updated), summed over the substeps.
+    at mid-step (forces_at_mid_step) or at the start); counts[s] <= n, and strand s moves
+    by h / counts[s] at the substeps in which one of its own ends (multirate: substep k,
+    0-based, ends (k + 1) counts[s] // n of them), waiting at the others; strand_h and
+    strand_t are scratch (n_strands,): each strand's step and the end of its own substep
+    (the wind's time). springs is (StripSprings, SpringConstants). Returns (broad-phase
+    checks, contacts, wall springs, segments updated), summed over the substeps.
     """
     t_end, h, n, mid_step = step
     checks = place_with_head(head, attach, bodies, settings.collisions, settings.broad_phase)
@@ -1240,7 +1242,9 @@ def chain_step(state,
         t = t_end - h + (k + 1) * h / n
         for s in range(n_s):
             own = h / counts[s]
-            strand_h[s] = own if (k + 1) % (n // counts[s]) == 0 else 0.0
+            ended = (k + 1) * counts[s] // n       # its own substeps ended by this one
+            strand_h[s] = own if ended > k * counts[s] // n else 0.0
+            strand_t[s] = t_end - h + ended * h / counts[s]
             if mid_step:
                 # each strand at the middle of its own substep (one waiting: of its next)
                 half = 0.5 * own
@@ -1250,7 +1254,8 @@ def chain_step(state,
         # drag against still air too (ArticulatedSolver.still_air_drag), and no root
         # inertia: the base motion comes out of the dynamics
         external_forces(at_mid, attach.root_acc, settings.gravity, wind, True, t,
-                        settings.drag_factor, settings.air_damping, False, forces, strand_h)
+                        settings.drag_factor, settings.air_damping, False, forces,
+                        (strand_h, strand_t))
         if not settings.collisions:      # (else reaction_constraint_forces clears it)
             clear_contact_record(forces.contact)
         else:
@@ -1528,6 +1533,7 @@ class ArticulatedSolver:
         self.scratch = chain_scratch(n_seg)
         self._swings = np.zeros(n_s)              # substeps_for's per-strand fastest swing
         self._strand_h = np.zeros(n_s)            # chain_step's per-substep steps
+        self._strand_t = np.zeros(n_s)            # and the ends of the strands' own substeps
         self._step_call = CompiledCall(chain_step)
         self.update_material(sim)
 
@@ -1662,7 +1668,7 @@ class ArticulatedSolver:
         Take a whole step of substeps (forces and chains) in one kernel call; see chain_step.
 
         step is (t at its end, h, n substeps, forces at mid-step), counts each strand's
-        (dividing n).
+        (at most n).
         """
         return self._step_call(
             sim.layout_version,
@@ -1679,6 +1685,7 @@ class ArticulatedSolver:
             step,
             counts,
             self._strand_h,
+            self._strand_t,
             sim.stats,
             self.scratch,
         )
