@@ -147,6 +147,10 @@ def hanging_section(rows):
     cost = {(r['strands'], r['solver']): r['wall_s_per_sim_s'] for r in speed}
     at_frame = {r['segments']: r for r in accuracy
                 if r['solver'] == 'hair_sim articulated' and r['step'] == '1/60'}
+    finer = ', '.join('%s s %.1f mm RMS (median %.2f mm)' % (
+        r['step'], 1e3 * r['tip_rms_vs_mujoco_m'], 1e3 * r['tip_median_vs_mujoco_m'])
+        for r in accuracy if r['solver'] == 'hair_sim articulated' and r['segments'] == 20
+        and r['step'] in ('1/120', '1/240'))
     return ['## Hanging hair against MuJoCo and PyElastica (`hair_sim_bench hanging --json`)',
             '',
             'The scene of issue 11 (`hair_sim/bench/hanging.py`): strands rooted on a head '
@@ -192,21 +196,29 @@ def hanging_section(rows):
             'joint turns far (settled without the head, a 10-segment strand\'s tip stands '
             '2 cm off the chain\'s, while a small, stiff cantilever agrees within 0.1 % and '
             'the first 0.1 s of the fall within 0.15 mm), so they end 12-13 mm (10 segments)'
-            ' and 4.7-5.9 mm (20) from both references at every step. At one step per 60 Hz'
-            ' frame they cost 4.7 s/s at 200 x 20, 13 times the articulated model; at 1000 x'
-            ' 20 MuJoCo could not allocate their collision arena (3 GB asked of 2 GB). The '
+            ' and 4.7-5.9 mm (20) from both references at every step. '
+            + 'At one step per 60 Hz frame they cost %.1f s/s at 200 x 20, %.0f times the '
+            'articulated model; '
+            % (cost[(200, 'mujoco flex')],
+               cost[(200, 'mujoco flex')] / cost[(200, 'hair_sim articulated')])
+            + 'at 1000 x 20 MuJoCo could not allocate their collision arena (3 GB asked of '
+            '2 GB). The '
             'thesis model cannot drape: its '
             'hinges pull each segment towards an absolute direction, so the strands stay up '
             'and out, tens of centimetres from the reference at every step size. The strands '
             'rooted near the top start balanced upright, and which side each falls to is '
             'decided by rounding: a solver that takes another path (another step, another '
             'substep count) can put a few of them elsewhere on the sphere, which the RMS '
-            'feels (1/240 s at 50 x 20) and the median does not. The articulated model splits'
-            ' a frame into substeps so that no segment turns more than 0.05 rad in one. '
-            'Strands with no springs between them, as here, each take their own count '
-            '(rounded up to a power of two, on the grid of the finest; a strand moves exactly'
-            ' as it would alone, tested): a strand at rest beside a whipping one takes the '
-            'frame whole. Against every strand taking the count of the fastest (as before, '
+            'feels and the median does not '
+            + '(50 x 20 against MuJoCo in this run: %s; at 1/240 s strands 0, 4, 5 and 10, '
+            'rooted nearest the pole, end 13-55 mm off). ' % finer
+            + 'The articulated model splits a frame into substeps so that no segment turns '
+            'more than 0.05 rad in one. '
+            'Strands with no springs between them, as here, each take their own count (a '
+            'strand moves at the substeps of the finest in which one of its own ends, with '
+            "the wind of its own substep's end, exactly as it would alone, tested): a strand "
+            'at rest beside a whipping one takes the frame whole. Against every strand '
+            'taking the count of the fastest (as before, '
             'measured back to back from a worktree of 422d4cf), the whole 2 s scene at 1/60 s'
             ' went from 1.07 to 0.40 s/s at 200 x 20 and from 7.27 to 1.95 s/s at 1000 x 20 '
             '(that run); its first 0.5 s (all the strands '
@@ -232,10 +244,10 @@ def hanging_section(rows):
             "starts): in the stress bench's gale with the inter-strip springs off, a strand "
             'taking 32 substeps where the finest took 256 reached 590 m/s in one frame and '
             'the next diverged. A frame in which a strand ends swinging more than 16 times '
-            'faster than its count allows (`OUTRAN_FACTOR`) is taken again with every strand '
-            'at the finest count, what they all took before (tested); the gale then runs its '
-            '2 s without a divergence, 5 frames taken again, as before this change (its sleep'
-            ' window fails in both, see the stress bench). With a factor of 4 the hanging '
+            'faster than its count allows (`OUTRAN_FACTOR`) is taken again (tested); the gale'
+            ' then runs its 2 s without a divergence, 5 frames taken again, as before this '
+            'change (its sleep window fails in both, see the stress bench). With a factor of '
+            '4 the hanging '
             'scene took frames again often (1000 x 20: 3.3 s/s). Without springs every stress'
             ' case gives the same pass or fail as before at 1/60 and 1/240 s (thesis_long, '
             "inter_strip off; /tmp scripts). A frame's substeps are one kernel call "
@@ -243,11 +255,25 @@ def hanging_section(rows):
             'substeps, and no forces worked out for a strand waiting at one), the same '
             'positions bit for bit (tested against the substeps one by one): back to back '
             'against 0ac33d3, 0.43 -> 0.37 s/s at 200 x 20 and 2.27 -> 2.01 at 1000 x 20 '
-            '(/tmp script); '
+            '(/tmp script). Until e703cda the counts were rounded up to a power of two, so '
+            "that every strand's substeps fell on the finest one's grid: 23 % more "
+            'strand-substeps over the fall than the strands needed (50 x 10 and 200 x 20). '
+            'Without the rounding, back to back against a15e9ac (/tmp scripts): 0.056 -> '
+            '0.042 s/s at 50 x 10, 0.091 -> 0.072 at 50 x 20, 0.37 -> 0.29 at 200 x 20 and '
+            '1.96 -> 1.59 at 1000 x 20; tips 1.97 -> 1.78 mm RMS from MuJoCo and 1.72 -> '
+            '1.70 from PyElastica on 50 x 10, 0.58 -> 0.64 and 0.59 -> 0.57 mm on 50 x 20. '
+            'The rounding had also been a margin: at 200 x 20 the top strand, rooted upright '
+            'at the pole, then came out non-finite once and outran its 16 substeps once, and '
+            'the retry, which gave every strand the finest count, gave it the same 16 and the'
+            ' next frame diverged. A retry now gives each strand that outran its count what '
+            "its swing at the frame's end needs and each that came out non-finite four times "
+            'the finest count, the others their own counts again (tested; strands joined by '
+            'springs all take the most, as before); that scene now takes 2 frames again at '
+            '200 x 20 and 2 at 1000 x 20. '
             + '%.2f and %.2f s/s in this run. ' % (cost[(200, 'hair_sim articulated')],
                                                    cost[(1000, 'hair_sim articulated')])
             + "The issue's speed target (0.045 s/s at 200 x 20, from MuJoCo's flex strands)"
-            ' is still not met: about 3.3 substeps a strand a frame over the 2 s fall (1 '
+            ' is still not met: about 2.8 substeps a strand a frame over the 2 s fall (1 '
             'each once the strands hang) at about 0.45 us per segment-substep, forces '
             'included.', '']
 
