@@ -839,6 +839,43 @@ def test_strands_whose_counts_do_not_divide_each_move_as_if_alone(spins, whole_s
     assert mixed.counters['strand_substeps'] == 2 + sum(map(sum, counts))   # (+ set-up)
 
 
+def _faulted_and_twin(fault, twin_counts):
+    """
+    Step two strands apart (one slow, one whipping) with a fault at the first try's end.
+
+    fault(sim) runs after the n-th substep of the faulted one (n the whipping strand's
+    count; the kernels one by one, so that the fault goes in between substeps); its twin
+    takes twin_counts(n) from the start. Returns (faulted, twin, n, each substep's steps).
+    """
+    faulted, twin = _two_strands(False), _two_strands(False)
+    n = faulted.solver.substeps_for(DEFAULT_DT)[1]
+    real_step = faulted.solver.step
+    calls = []
+
+    def fault_at_the_end(sim, strand_h, head):
+        out = real_step(sim, strand_h, head)
+        calls.append(strand_h.copy())
+        if len(calls) == n:                        # the first try's last substep
+            fault(sim)
+        return out
+
+    faulted.solver.step = fault_at_the_end
+    faulted.solver.whole_step = False
+    twin.solver.substeps_for = lambda h: np.array(twin_counts(n))
+    for sim in (faulted, twin):
+        sim.step(DEFAULT_DT)
+    return faulted, twin, n, calls
+
+
+def _assert_retried_once_as_the_twin(faulted, twin, counts):
+    """Assert the step was taken again once, at counts, giving exactly what the twin got."""
+    assert faulted.counters['retried_steps'] == 1
+    assert list(faulted._last_substeps) == counts
+    assert np.array_equal(faulted.pos, twin.pos)
+    for a, b in zip(faulted.solver.step_state(), twin.solver.step_state()):
+        assert np.array_equal(a, b)
+
+
 def test_a_strand_that_outran_its_substeps_takes_the_step_again_at_what_it_needs():
     """
     A finite blow-up in a multirate step: that strand takes the step again, finer.
@@ -849,31 +886,15 @@ def test_a_strand_that_outran_its_substeps_takes_the_step_again_at_what_it_needs
     needs (here MAX_SUBSTEPS) and the whipping one at its own count again, which must give
     exactly what a twin gets taking those counts in the first place.
     """
-    spoiled, twin = _two_strands(False), _two_strands(False)
-    n = spoiled.solver.substeps_for(DEFAULT_DT)[1]
     finest = articulated.MAX_SUBSTEPS
+
+    def fling(sim):
+        sim.solver.omega[0, :, 0] = 1e4
+
+    spoiled, twin, n, calls = _faulted_and_twin(fling, lambda n: [finest, n])
     assert 1 < n < finest
-    real_step = spoiled.solver.step
-    calls = []
-
-    def fling_at_the_end(sim, strand_h, head):
-        out = real_step(sim, strand_h, head)
-        calls.append(strand_h.copy())
-        if len(calls) == n:                        # the first try's last substep
-            spoiled.solver.omega[0, :, 0] = 1e4
-        return out
-
-    spoiled.solver.step = fling_at_the_end
-    spoiled.solver.whole_step = False     # (the fault goes in between substeps)
-    twin.solver.substeps_for = lambda h: np.array([finest, n])
-    for sim in (spoiled, twin):
-        sim.step(DEFAULT_DT)
-    assert spoiled.counters['retried_steps'] == 1
-    assert list(spoiled._last_substeps) == [finest, n]
     assert len(calls) == n + finest and (calls[0][0] == 0.0) and (calls[-1] > 0.0).all()
-    assert np.array_equal(spoiled.pos, twin.pos)
-    for a, b in zip(spoiled.solver.step_state(), twin.solver.step_state()):
-        assert np.array_equal(a, b)
+    _assert_retried_once_as_the_twin(spoiled, twin, [finest, n])
 
 
 def test_a_strand_apart_that_blows_up_alone_is_taken_again_finer_the_other_as_it_was():
@@ -886,29 +907,13 @@ def test_a_strand_apart_that_blows_up_alone_is_taken_again_finer_the_other_as_it
     which must give exactly what a twin gets taking those counts in the first place.
     """
     from hair_sim.physics.simulator import RETRY_SUBSTEP_FACTOR
-    spoiled, twin = _two_strands(False), _two_strands(False)
-    n = spoiled.solver.substeps_for(DEFAULT_DT)[1]
-    real_step = spoiled.solver.step
-    calls = []
 
-    def spoil_at_the_end(sim, strand_h, head):
-        out = real_step(sim, strand_h, head)
-        calls.append(strand_h.copy())
-        if len(calls) == n:                        # the first try's last substep
-            sim.pos[1, -1] = np.nan
-            spoiled.solver.omega[1] = np.nan
-        return out
+    def spoil(sim):
+        sim.pos[1, -1] = np.nan
+        sim.solver.omega[1] = np.nan
 
-    spoiled.solver.step = spoil_at_the_end
-    spoiled.solver.whole_step = False     # (the fault goes in between substeps)
-    twin.solver.substeps_for = lambda h: np.array([1, RETRY_SUBSTEP_FACTOR * n])
-    for sim in (spoiled, twin):
-        sim.step(DEFAULT_DT)
-    assert spoiled.counters['retried_steps'] == 1
-    assert list(spoiled._last_substeps) == [1, RETRY_SUBSTEP_FACTOR * n]
-    assert np.array_equal(spoiled.pos, twin.pos)
-    for a, b in zip(spoiled.solver.step_state(), twin.solver.step_state()):
-        assert np.array_equal(a, b)
+    spoiled, twin, n, _ = _faulted_and_twin(spoil, lambda n: [1, RETRY_SUBSTEP_FACTOR * n])
+    _assert_retried_once_as_the_twin(spoiled, twin, [1, RETRY_SUBSTEP_FACTOR * n])
 
 
 def test_strands_that_need_the_same_count_take_it_unrounded():
