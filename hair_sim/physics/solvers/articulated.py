@@ -12,7 +12,7 @@ split between the two losses a strand has (`JOINT_DAMPING_SHARE`, `AIR_DAMPING_S
 dampers on the joints' relative angular velocities, d = share x damping x the inertia about
 the joint of everything beyond it at the modeled pose (`inertia_beyond`), and a drag -share
 x damping x m v on every segment's centre relative to still air (added to `air_damping`).
-Twist: the joints are 2-DOF, no spin about a rod relative to its parent (`_lock_twist` in
+Twist: the joints are 2-DOF, no spin about a rod relative to its parent (`_without_twist` in
 the articulated-body pass, the relative spin removed from the angular velocities, which
 moves no vertex), and each joint is a pure bend: after every step a rod's frame is turned
 about its own axis so that it is its rest frame under the parent turned by the minimal
@@ -170,89 +170,163 @@ ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', '
                                        'offset', 'air', 'friction', 'sag_by_height'])
 # step_chains' scratch (chain_scratch): per-chain arrays reused for every strand and step
 ChainScratch = namedtuple('ChainScratch', ['Acc', 'Bcc', 'Mcc', 'pang', 'plin', 'Dinv', 'U_A',
-                                           'U_B', 'u', 'alpha', 'wm', 'theta', 'J', 'B', 'M',
-                                           'S', 'T1', 'T2', 'D', 'e', 'r', 'rc', 'nrm', 'av',
-                                           'w', 't3', 't4', 'y3', 'qa', 'ql', 'E', 'Rnew', 'Q',
-                                           'guarded', 'g_nrm', 'u_imp', 'dw', 'rc_imp',
-                                           'lam_imp', 'c_seg', 'c_lever', 'c_nrm', 'c_bound',
-                                           'c_load', 'c_lam', 'c_fric', 't_fric', 'c_dw',
-                                           'c_dvn'])
+                                           'U_B', 'u', 'alpha', 'wm', 'theta', 'guarded',
+                                           'g_nrm', 'u_imp', 'dw', 'rc_imp', 'lam_imp', 'c_seg',
+                                           'c_lever', 'c_nrm', 'c_bound', 'c_load', 'c_lam',
+                                           'c_fric', 't_fric', 'c_dw', 'c_dvn'])
 
 
 # ------------------------------------------------------------------ 3x3 helpers
 @njit_without_refcounts
-def _skew(a, out):
-    out[0, 0], out[0, 1], out[0, 2] = 0.0, -a[2], a[1]
-    out[1, 0], out[1, 1], out[1, 2] = a[2], 0.0, -a[0]
-    out[2, 0], out[2, 1], out[2, 2] = -a[1], a[0], 0.0
+def _cross3(a, b):
+    """Return the cross product a x b of two 3-tuples."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
 @njit_without_refcounts
-def _cross(a, b, out):
-    x = a[1] * b[2] - a[2] * b[1]
-    y = a[2] * b[0] - a[0] * b[2]
-    z = a[0] * b[1] - a[1] * b[0]
-    out[0], out[1], out[2] = x, y, z
+def _scaled_outer3(c, a, b):
+    """Return the 9-tuple of c a b^T, each entry (c a_i) b_j."""
+    return (c * a[0] * b[0], c * a[0] * b[1], c * a[0] * b[2],
+            c * a[1] * b[0], c * a[1] * b[1], c * a[1] * b[2],
+            c * a[2] * b[0], c * a[2] * b[1], c * a[2] * b[2])
 
 
 @njit_without_refcounts
-def _inv_sym3(A, out):
-    """Inverse of a symmetric positive definite 3x3 matrix."""
-    a, b, c = A[0, 0], A[0, 1], A[0, 2]
-    d, e, f = A[1, 1], A[1, 2], A[2, 2]
+def _inverse_sym3(A):
+    """Return the inverse of a symmetric positive definite 3x3 matrix (9-tuples)."""
+    a, b, c = A[0], A[1], A[2]
+    d, e, f = A[4], A[5], A[8]
     c00 = d * f - e * e
     c01 = c * e - b * f
     c02 = b * e - c * d
     det = a * c00 + b * c01 + c * c02
     inv = 1.0 / det
-    out[0, 0] = c00 * inv
-    out[0, 1] = out[1, 0] = c01 * inv
-    out[0, 2] = out[2, 0] = c02 * inv
-    out[1, 1] = (a * f - c * c) * inv
-    out[1, 2] = out[2, 1] = (b * c - a * e) * inv
-    out[2, 2] = (a * d - b * b) * inv
+    o01, o02, o12 = c01 * inv, c02 * inv, (b * c - a * e) * inv
+    return (c00 * inv, o01, o02,
+            o01, (a * f - c * c) * inv, o12,
+            o02, o12, (a * d - b * b) * inv)
 
 
 @njit_without_refcounts
-def exp_so3(wx, wy, wz, out):
-    """Rotation matrix Exp([w]) of a rotation vector (Rodrigues)."""
+def _without_twist(S, dx, dy, dz):
+    """
+    Return the joint's inverse S = D^-1 made that of a 2-DOF joint: no twist (9-tuples).
+
+    The limit of (D + kappa d d^T)^-1 as kappa grows (Sherman-Morrison): S - (S d)(S d)^T /
+    (d^T S d), d the rod's axis. The relative acceleration S y is then always across the
+    rod. See the module text for why the joints do not twist.
+    """
+    g0 = S[0] * dx + S[1] * dy + S[2] * dz
+    g1 = S[3] * dx + S[4] * dy + S[5] * dz
+    g2 = S[6] * dx + S[7] * dy + S[8] * dz
+    q = g0 * dx + g1 * dy + g2 * dz
+    return (S[0] - g0 * g0 / q, S[1] - g0 * g1 / q, S[2] - g0 * g2 / q,
+            S[3] - g1 * g0 / q, S[4] - g1 * g1 / q, S[5] - g1 * g2 / q,
+            S[6] - g2 * g0 / q, S[7] - g2 * g1 / q, S[8] - g2 * g2 / q)
+
+
+@njit_without_refcounts
+def _load3(A):
+    """Return the 3x3 array A as a row-major 9-tuple."""
+    return (A[0, 0], A[0, 1], A[0, 2], A[1, 0], A[1, 1], A[1, 2], A[2, 0], A[2, 1], A[2, 2])
+
+
+@njit_without_refcounts
+def _store3(m, out):
+    """Write the 9-tuple m into the 3x3 array out."""
+    out[0, 0], out[0, 1], out[0, 2] = m[0], m[1], m[2]
+    out[1, 0], out[1, 1], out[1, 2] = m[3], m[4], m[5]
+    out[2, 0], out[2, 1], out[2, 2] = m[6], m[7], m[8]
+
+
+@njit_without_refcounts
+def _mul3(a, b):
+    """Return the product a b of two 9-tuples (sums left to right, as the loops had them)."""
+    return (a[0] * b[0] + a[1] * b[3] + a[2] * b[6],
+            a[0] * b[1] + a[1] * b[4] + a[2] * b[7],
+            a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
+            a[3] * b[0] + a[4] * b[3] + a[5] * b[6],
+            a[3] * b[1] + a[4] * b[4] + a[5] * b[7],
+            a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
+            a[6] * b[0] + a[7] * b[3] + a[8] * b[6],
+            a[6] * b[1] + a[7] * b[4] + a[8] * b[7],
+            a[6] * b[2] + a[7] * b[5] + a[8] * b[8])
+
+
+@njit_without_refcounts
+def _transpose3(a):
+    """Return the transpose of a 9-tuple."""
+    return (a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8])
+
+
+@njit_without_refcounts
+def _add3(a, b):
+    """Return a + b of two 9-tuples."""
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3], a[4] + b[4], a[5] + b[5],
+            a[6] + b[6], a[7] + b[7], a[8] + b[8])
+
+
+@njit_without_refcounts
+def _sub3(a, b):
+    """Return a - b of two 9-tuples."""
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3], a[4] - b[4], a[5] - b[5],
+            a[6] - b[6], a[7] - b[7], a[8] - b[8])
+
+
+@njit_without_refcounts
+def _apply3(a, x, y, z):
+    """Return a (x, y, z) for a 9-tuple a."""
+    return (a[0] * x + a[1] * y + a[2] * z,
+            a[3] * x + a[4] * y + a[5] * z,
+            a[6] * x + a[7] * y + a[8] * z)
+
+
+@njit_without_refcounts
+def _apply_both3(a, x, b, y):
+    """Return a x + b y for 9-tuples a, b and 3-tuples x, y (one sum, left to right)."""
+    return (a[0] * x[0] + a[1] * x[1] + a[2] * x[2] + b[0] * y[0] + b[1] * y[1] + b[2] * y[2],
+            a[3] * x[0] + a[4] * x[1] + a[5] * x[2] + b[3] * y[0] + b[4] * y[1] + b[5] * y[2],
+            a[6] * x[0] + a[7] * x[1] + a[8] * x[2] + b[6] * y[0] + b[7] * y[1] + b[8] * y[2])
+
+
+@njit_without_refcounts
+def rotation_exp(wx, wy, wz):
+    """Return the rotation matrix Exp([w]) of a rotation vector (Rodrigues), a 9-tuple."""
     th2 = wx * wx + wy * wy + wz * wz
     if th2 < 1e-16:
         s, c1 = 1.0 - th2 / 6.0, 0.5 - th2 / 24.0
     else:
         th = sqrt(th2)
         s, c1 = sin(th) / th, (1.0 - cos(th)) / th2
-    out[0, 0] = 1.0 - c1 * (wy * wy + wz * wz)
-    out[1, 1] = 1.0 - c1 * (wx * wx + wz * wz)
-    out[2, 2] = 1.0 - c1 * (wx * wx + wy * wy)
-    out[0, 1] = c1 * wx * wy - s * wz
-    out[1, 0] = c1 * wx * wy + s * wz
-    out[0, 2] = c1 * wx * wz + s * wy
-    out[2, 0] = c1 * wx * wz - s * wy
-    out[1, 2] = c1 * wy * wz - s * wx
-    out[2, 1] = c1 * wy * wz + s * wx
+    return (1.0 - c1 * (wy * wy + wz * wz), c1 * wx * wy - s * wz, c1 * wx * wz + s * wy,
+            c1 * wx * wy + s * wz, 1.0 - c1 * (wx * wx + wz * wz), c1 * wy * wz - s * wx,
+            c1 * wx * wz - s * wy, c1 * wy * wz + s * wx, 1.0 - c1 * (wx * wx + wy * wy))
 
 
 @njit_without_refcounts
-def _orthonormalize(R):
-    """Gram-Schmidt on the columns, z (the rod) first: keep R a rotation under roundoff."""
-    zx, zy, zz = R[0, 2], R[1, 2], R[2, 2]
+def _orthonormalized(m):
+    """
+    Return the 9-tuple m with its columns made orthonormal, z (the rod) first.
+
+    Gram-Schmidt: keeps R a rotation under roundoff.
+    """
+    zx, zy, zz = m[2], m[5], m[8]
     n = sqrt(zx * zx + zy * zy + zz * zz)
     zx, zy, zz = zx / n, zy / n, zz / n
-    xx, xy, xz = R[0, 0], R[1, 0], R[2, 0]
+    xx, xy, xz = m[0], m[3], m[6]
     dot = xx * zx + xy * zy + xz * zz
     xx, xy, xz = xx - dot * zx, xy - dot * zy, xz - dot * zz
     n = sqrt(xx * xx + xy * xy + xz * xz)
     xx, xy, xz = xx / n, xy / n, xz / n
-    R[0, 0], R[1, 0], R[2, 0] = xx, xy, xz
-    R[0, 1], R[1, 1], R[2, 1] = zy * xz - zz * xy, zz * xx - zx * xz, zx * xy - zy * xx
-    R[0, 2], R[1, 2], R[2, 2] = zx, zy, zz
+    return (xx, zy * xz - zz * xy, zx,
+            xy, zz * xx - zx * xz, zy,
+            xz, zx * xy - zy * xx, zz)
 
 
 @njit_without_refcounts
-def twist_free_frame(Rp, rest_rel, R, A):
+def twist_free_rotation(Rp, rest_rel, R):
     """
-    Turn R about its own rod axis so that the joint from Rp is a pure bend, in place.
+    Return R turned about its own rod axis so that the joint from Rp is a pure bend.
 
     The joints have two degrees of freedom: the child's frame is its rest frame under the
     parent, A = Rp rest_rel, turned by the minimal rotation that takes A's z to the rod's
@@ -264,49 +338,46 @@ def twist_free_frame(Rp, rest_rel, R, A):
     same strand kicked from rest came to rest, and rang for 4 s (root joint: 0.66 rad).
     This moves no vertex (d is kept); the bending energy becomes a function of the rods'
     directions alone, as in the Hencky bar-chain. A rod bent back on its rest axis (d = -z)
-    keeps its frame. A is scratch (3x3).
+    keeps its frame. Rotations are row-major 9-tuples.
     """
-    for a in range(3):
-        for b in range(3):
-            A[a, b] = Rp[a, 0] * rest_rel[0, b] + Rp[a, 1] * rest_rel[1, b] + \
-                Rp[a, 2] * rest_rel[2, b]
-    dx, dy, dz = R[0, 2], R[1, 2], R[2, 2]
-    vx = A[0, 0] * dx + A[1, 0] * dy + A[2, 0] * dz        # d in A's frame
-    vy = A[0, 1] * dx + A[1, 1] * dy + A[2, 1] * dz
-    vz = A[0, 2] * dx + A[1, 2] * dy + A[2, 2] * dz
+    A = _mul3(Rp, rest_rel)
+    dx, dy, dz = R[2], R[5], R[8]
+    vx = A[0] * dx + A[3] * dy + A[6] * dz        # d in A's frame
+    vy = A[1] * dx + A[4] * dy + A[7] * dz
+    vz = A[2] * dx + A[5] * dy + A[8] * dz
     c = 1.0 + vz
     if c < 1e-9:
-        return
+        return R
     # minimal rotation z -> v: I + [k] + [k]^2 / (1 + v_z), k = z x v (columns x, y, v)
-    s00, s01, s02 = 1.0 - vx * vx / c, -vx * vy / c, vx
-    s10, s11, s12 = -vx * vy / c, 1.0 - vy * vy / c, vy
-    s20, s21, s22 = -vx, -vy, vz
-    for a in range(3):
-        a0, a1, a2 = A[a, 0], A[a, 1], A[a, 2]
-        R[a, 0] = a0 * s00 + a1 * s10 + a2 * s20
-        R[a, 1] = a0 * s01 + a1 * s11 + a2 * s21
-        R[a, 2] = a0 * s02 + a1 * s12 + a2 * s22
+    return _mul3(A, (1.0 - vx * vx / c, -vx * vy / c, vx,
+                     -vx * vy / c, 1.0 - vy * vy / c, vy,
+                     -vx, -vy, vz))
+
+
+@njit_without_refcounts
+def twist_free_frame(Rp, rest_rel, R):
+    """Turn the 3x3 array R about its own rod axis, in place (twist_free_rotation)."""
+    _store3(twist_free_rotation(_load3(Rp), _load3(rest_rel), _load3(R)), R)
 
 
 @njit(cache=True)
 def twist_free_chains(R, rest_rel, Rh):
     """twist_free_frame for every joint, root to tip (R: n_strands, n_segments, 3, 3)."""
-    A = np.empty((3, 3))
     for s in range(R.shape[0]):
         for i in range(R.shape[1]):
-            twist_free_frame(Rh if i == 0 else R[s, i - 1], rest_rel[s, i], R[s, i], A)
+            twist_free_frame(Rh if i == 0 else R[s, i - 1], rest_rel[s, i], R[s, i])
+
+
+@njit_without_refcounts
+def joint_rotation_of(Rp, rest_rel, Ri):
+    """Return S = rest_rel^T Rp^T Ri: the joint's rotation from its rest (9-tuples)."""
+    return _mul3(_transpose3(_mul3(Rp, rest_rel)), Ri)
 
 
 @njit_without_refcounts
 def joint_rotation(Rp, rest_rel, Ri, out):
     """Write S = rest_rel^T Rp^T Ri: the joint's rotation from its rest (child from parent)."""
-    for a in range(3):
-        # column a of Rp rest_rel
-        q0 = Rp[0, 0] * rest_rel[0, a] + Rp[0, 1] * rest_rel[1, a] + Rp[0, 2] * rest_rel[2, a]
-        q1 = Rp[1, 0] * rest_rel[0, a] + Rp[1, 1] * rest_rel[1, a] + Rp[1, 2] * rest_rel[2, a]
-        q2 = Rp[2, 0] * rest_rel[0, a] + Rp[2, 1] * rest_rel[1, a] + Rp[2, 2] * rest_rel[2, a]
-        for b in range(3):
-            out[a, b] = q0 * Ri[0, b] + q1 * Ri[1, b] + q2 * Ri[2, b]
+    _store3(joint_rotation_of(_load3(Rp), _load3(rest_rel), _load3(Ri)), out)
 
 
 @njit_without_refcounts
@@ -369,11 +440,12 @@ def bend_energy(S, e0):
 
 
 @njit_without_refcounts
-def _bend_deviation(S, e0, q):
+def bend_deviation_of(S, e0):
     """
-    Write the bend spring's generalised deviation q (child frame): torque -k R q.
+    Return the bend spring's generalised deviation q (child frame): torque -k R q.
 
-    S is the joint's rotation from rest (joint_rotation), v = S z the rod's axis in the
+    S is the joint's rotation from rest (joint_rotation_of, a 9-tuple), v = S z the rod's
+    axis in the
     rest frame, theta its angle from z and n = z x v / sin(theta) the bend's axis. The
     spring's energy k E (bend_energy) is a function of v alone (the joints have no twist).
     A turn delta of the rod changes theta by delta.n and the bend plane's azimuth psi by
@@ -385,7 +457,7 @@ def _bend_deviation(S, e0, q):
     Within a step the frames drift off twist-free, so e is taken from v alone.) A rod
     folded back onto its rest axis (v = -z) gets no torque.
     """
-    vx, vy, vz = S[0, 2], S[1, 2], S[2, 2]
+    vx, vy, vz = S[2], S[5], S[8]
     t, st, f = _bend_angle(vx, vy, vz)
     if t < 1e-3:
         # near rest: the Cartesian gradient of |e - e0|^2 / 2, with f to O(theta^4)
@@ -408,30 +480,16 @@ def _bend_deviation(S, e0, q):
         qy = d_theta * ny + d_psi * my
         qz = d_psi * mz
     else:
-        q[0] = q[1] = q[2] = 0.0
-        return
-    q[0] = S[0, 0] * qx + S[1, 0] * qy + S[2, 0] * qz
-    q[1] = S[0, 1] * qx + S[1, 1] * qy + S[2, 1] * qz
-    q[2] = S[0, 2] * qx + S[1, 2] * qy + S[2, 2] * qz
+        return (0.0, 0.0, 0.0)
+    return (S[0] * qx + S[3] * qy + S[6] * qz,
+            S[1] * qx + S[4] * qy + S[7] * qz,
+            S[2] * qx + S[5] * qy + S[8] * qz)
 
 
 @njit_without_refcounts
-def _lock_twist(S, dx, dy, dz):
-    """
-    Turn the joint's inverse S = D^-1 into that of a 2-DOF joint, in place: no twist.
-
-    The limit of (D + kappa d d^T)^-1 as kappa grows (Sherman-Morrison): S - (S d)(S d)^T /
-    (d^T S d), d the rod's axis. The relative acceleration S y is then always across the
-    rod. See the module text for why the joints do not twist.
-    """
-    g0 = S[0, 0] * dx + S[0, 1] * dy + S[0, 2] * dz
-    g1 = S[1, 0] * dx + S[1, 1] * dy + S[1, 2] * dz
-    g2 = S[2, 0] * dx + S[2, 1] * dy + S[2, 2] * dz
-    q = g0 * dx + g1 * dy + g2 * dz
-    g = (g0, g1, g2)
-    for a in range(3):
-        for b in range(3):
-            S[a, b] -= g[a] * g[b] / q
+def _bend_deviation(S, e0, q):
+    """Write bend_deviation_of the 3x3 array S into q."""
+    q[0], q[1], q[2] = bend_deviation_of(_load3(S), e0)
 
 
 @njit_without_refcounts
@@ -842,10 +900,8 @@ def step_chains(state,
     # per-chain scratch (reused for every strand; see chain_scratch)
     sc = scratch
     Acc, Bcc, Mcc, pang, plin, Dinv = sc.Acc, sc.Bcc, sc.Mcc, sc.pang, sc.plin, sc.Dinv
-    U_A, U_B, u, alpha, wm, theta, J = sc.U_A, sc.U_B, sc.u, sc.alpha, sc.wm, sc.theta, sc.J
-    B, M, S, T1, T2, D, e, r, rc = sc.B, sc.M, sc.S, sc.T1, sc.T2, sc.D, sc.e, sc.r, sc.rc
-    nrm, av, w, t3, t4, y3, qa, ql = sc.nrm, sc.av, sc.w, sc.t3, sc.t4, sc.y3, sc.qa, sc.ql
-    E, Rnew, Q, guarded, g_nrm, u_imp = sc.E, sc.Rnew, sc.Q, sc.guarded, sc.g_nrm, sc.u_imp
+    U_A, U_B, u, alpha, wm, theta = sc.U_A, sc.U_B, sc.u, sc.alpha, sc.wm, sc.theta
+    guarded, g_nrm, u_imp = sc.guarded, sc.g_nrm, sc.u_imp
     dw, rc_imp, lam_imp, c_seg, c_lever = sc.dw, sc.rc_imp, sc.lam_imp, sc.c_seg, sc.c_lever
     c_nrm, c_bound, c_load, c_lam = sc.c_nrm, sc.c_bound, sc.c_load, sc.c_lam
     c_fric, t_fric, c_dw, c_dvn = sc.c_fric, sc.t_fric, sc.c_dw, sc.c_dvn
@@ -866,22 +922,16 @@ def step_chains(state,
             theta[i] = 0.5 / (1.0 + bi ** 4)
             for a in range(3):
                 wm[i, a] = omega[s, i, a] + theta[i] * h * alpha_prev[s, i, a]
-            exp_so3(theta[i] * h * omega[s, i, 0], theta[i] * h * omega[s, i, 1],
-                    theta[i] * h * omega[s, i, 2], E)
-            Ri = R[s, i]
-            for a in range(3):
-                for b in range(3):
-                    Rnew[a, b] = E[a, 0] * Ri[0, b] + E[a, 1] * Ri[1, b] + E[a, 2] * Ri[2, b]
-            _orthonormalize(Rnew)
-            for a in range(3):
-                for b in range(3):
-                    Ri[a, b] = Rnew[a, b]
+            turn = rotation_exp(theta[i] * h * omega[s, i, 0], theta[i] * h * omega[s, i, 1],
+                                theta[i] * h * omega[s, i, 2])
+            _store3(_orthonormalized(_mul3(turn, _load3(R[s, i]))), R[s, i])
         # ---------------- backward pass: articulated inertias, tip to root
+        # (3x3 blocks as row-major 9-tuples, vectors as 3-tuples: they stay in registers)
         for i in range(n_seg - 1, -1, -1):
             seg = length[s, i]
             m = mass[s, i]
             dx, dy, dz = R[s, i, 0, 2], R[s, i, 1, 2], R[s, i, 2, 2]
-            r[0], r[1], r[2] = 0.5 * seg * dx, 0.5 * seg * dy, 0.5 * seg * dz
+            r = (0.5 * seg * dx, 0.5 * seg * dy, 0.5 * seg * dz)
             # Air drag -c v at the centre, c = air m: applied at the start-of-step velocity
             # by the shared forces; half of it again on the velocity change, as an added
             # mass cw = h c / 2 at the centre, makes it -c (v + v+) / 2 (trapezoidal: second
@@ -891,17 +941,15 @@ def step_chains(state,
             # inertia about the joint: (m seg^2 / 3 + cw seg^2 / 4)(1 - d d^T) + I_axial d d^T
             ip = m * seg * seg / 3.0 + 0.25 * cw * seg * seg
             ia = i_ax[s, i]
-            J[0, 0] = ip + (ia - ip) * dx * dx
-            J[1, 1] = ip + (ia - ip) * dy * dy
-            J[2, 2] = ip + (ia - ip) * dz * dz
-            J[0, 1] = J[1, 0] = (ia - ip) * dx * dy
-            J[0, 2] = J[2, 0] = (ia - ip) * dx * dz
-            J[1, 2] = J[2, 1] = (ia - ip) * dy * dz
-            _skew(r, B)
-            for a in range(3):
-                for b in range(3):
-                    B[a, b] *= m + cw
-                    M[a, b] = m + cw if a == b else 0.0
+            j01, j02, j12 = (ia - ip) * dx * dy, (ia - ip) * dx * dz, (ia - ip) * dy * dz
+            Jm = (ip + (ia - ip) * dx * dx, j01, j02,
+                  j01, ip + (ia - ip) * dy * dy, j12,
+                  j02, j12, ip + (ia - ip) * dz * dz)
+            mc = m + cw
+            Bm = (0.0 * mc, -r[2] * mc, r[1] * mc,          # [r] (m + cw)
+                  r[2] * mc, 0.0 * mc, -r[0] * mc,
+                  -r[1] * mc, r[0] * mc, 0.0 * mc)
+            Mm = (mc, 0.0, 0.0, 0.0, mc, 0.0, 0.0, 0.0, mc)
             # A contact (eqs. 7-10, applied explicitly as a force) is stiff for a light
             # segment: its linearisation, F = -(k, c) n n^T (x, v) at the contact point,
             # is taken implicitly as an added mass (GAMMA h^2 k + h c) n n^T there, so
@@ -914,28 +962,23 @@ def step_chains(state,
                 if kc + cc <= 0.0:
                     break
                 lv = contact[s, i, slot + CONTACT_LEVER] * seg
-                nrm[0], nrm[1], nrm[2] = contact[s, i, slot + CONTACT_NX], \
-                    contact[s, i, slot + CONTACT_NY], contact[s, i, slot + CONTACT_NZ]
+                nrm = (contact[s, i, slot + CONTACT_NX], contact[s, i, slot + CONTACT_NY],
+                       contact[s, i, slot + CONTACT_NZ])
                 cw = GAMMA * h * h * kc + h * cc
-                rc[0], rc[1], rc[2] = lv * dx, lv * dy, lv * dz
-                _cross(rc, nrm, t4)                      # r x n
-                for a in range(3):
-                    for b in range(3):
-                        # J += -[r] Mc [r] = cw (r x n)(r x n)^T; B += [r] Mc; M += Mc
-                        J[a, b] += cw * t4[a] * t4[b]
-                        B[a, b] += cw * t4[a] * nrm[b]
-                        M[a, b] += cw * nrm[a] * nrm[b]
+                rn = _cross3((lv * dx, lv * dy, lv * dz), nrm)     # r x n
+                # J += -[r] Mc [r] = cw (r x n)(r x n)^T; B += [r] Mc; M += Mc
+                Jm = _add3(Jm, _scaled_outer3(cw, rn, rn))
+                Bm = _add3(Bm, _scaled_outer3(cw, rn, nrm))
+                Mm = _add3(Mm, _scaled_outer3(cw, nrm, nrm))
             # velocity-product bias: N_b = w x I_c w + m r x (w x (w x r)), F_b = m w x (w x r)
             wx, wy, wz = wm[i, 0], wm[i, 1], wm[i, 2]
-            w[0], w[1], w[2] = wx, wy, wz
+            w = (wx, wy, wz)
             icp = m * seg * seg / 12.0
             wd = wx * dx + wy * dy + wz * dz
-            t3[0] = icp * (wx - wd * dx) + ia * wd * dx
-            t3[1] = icp * (wy - wd * dy) + ia * wd * dy
-            t3[2] = icp * (wz - wd * dz) + ia * wd * dz
-            _cross(w, t3, t3)                         # w x I_c w
-            _cross(w, r, t4)
-            _cross(w, t4, t4)                         # w x (w x r)
+            nb = _cross3(w, (icp * (wx - wd * dx) + ia * wd * dx,
+                             icp * (wy - wd * dy) + ia * wd * dy,
+                             icp * (wz - wd * dz) + ia * wd * dz))      # w x I_c w
+            t4 = _cross3(w, _cross3(w, r))                               # w x (w x r)
             fbx, fby, fbz = m * t4[0], m * t4[1], m * t4[2]
             # external wrench about the joint: f_dist at the centre, f_end at the end
             fdx, fdy, fdz = f_dist[s, i, 0], f_dist[s, i, 1], f_dist[s, i, 2]
@@ -944,18 +987,16 @@ def step_chains(state,
             ney = r[2] * (fdx + 2.0 * fex) - r[0] * (fdz + 2.0 * fez)
             nez = r[0] * (fdy + 2.0 * fey) - r[1] * (fdx + 2.0 * fex)
             # r x (m w x (w x r)) joins N_b
-            nbx = t3[0] + r[1] * fbz - r[2] * fby
-            nby = t3[1] + r[2] * fbx - r[0] * fbz
-            nbz = t3[2] + r[0] * fby - r[1] * fbx
+            nbx = nb[0] + r[1] * fbz - r[2] * fby
+            nby = nb[1] + r[2] * fbx - r[0] * fbz
+            nbz = nb[2] + r[0] * fby - r[1] * fbx
             pa0, pa1, pa2 = nbx - nex, nby - ney, nbz - nez
             pl0, pl1, pl2 = fbx - fdx - fex, fby - fdy - fey, fbz - fdz - fez
             # plus the child's articulated inertia and bias, already moved to this joint
             if i < n_seg - 1:
-                for a in range(3):
-                    for b in range(3):
-                        J[a, b] += Acc[i + 1, a, b]
-                        B[a, b] += Bcc[i + 1, a, b]
-                        M[a, b] += Mcc[i + 1, a, b]
+                Jm = _add3(Jm, _load3(Acc[i + 1]))
+                Bm = _add3(Bm, _load3(Bcc[i + 1]))
+                Mm = _add3(Mm, _load3(Mcc[i + 1]))
                 pa0 += pang[i + 1, 0]
                 pa1 += pang[i + 1, 1]
                 pa2 += pang[i + 1, 2]
@@ -964,8 +1005,9 @@ def step_chains(state,
                 pl2 += plin[i + 1, 2]
             # ball joint i: spring and damper on the relative rotation, implicit part c
             Rp = Rh if i == 0 else R[s, i - 1]
-            joint_rotation(Rp, rest_rel[s, i], R[s, i], Q)
-            _bend_deviation(Q, offset[s, i], e)
+            Ri = _load3(R[s, i])
+            e = bend_deviation_of(joint_rotation_of(_load3(Rp), _load3(rest_rel[s, i]), Ri),
+                                  offset[s, i])
             k = kj[s, i]
             dd = dj[s, i]
             # the implicit spring and damper work from the start-of-step velocities
@@ -977,7 +1019,6 @@ def step_chains(state,
                 rwx = omega[s, i, 0] - omega[s, i - 1, 0]
                 rwy = omega[s, i, 1] - omega[s, i - 1, 1]
                 rwz = omega[s, i, 2] - omega[s, i - 1, 2]
-            Ri = R[s, i]
             # numerical damping of modes the step cannot resolve, b = h^2 k / I of the joint:
             # across the rod its swing inertia, along it the (tiny) twist inertia
             bs = h * h * k / (m * seg * seg / 3.0 + ia)
@@ -985,77 +1026,52 @@ def step_chains(state,
             dp = GAMMA * UNRESOLVED_DAMPING * (bs / (1.0 + bs)) ** 4 * h * k
             dt_ = GAMMA * UNRESOLVED_DAMPING * (bt / (1.0 + bt)) ** 4 * h * k
             rd = (rwx * dx + rwy * dy + rwz * dz) * (dt_ - dp)
-            tqx = -k * (Ri[0, 0] * e[0] + Ri[0, 1] * e[1] + Ri[0, 2] * e[2]) \
-                - (dd + dp) * rwx - rd * dx
-            tqy = -k * (Ri[1, 0] * e[0] + Ri[1, 1] * e[1] + Ri[1, 2] * e[2]) \
-                - (dd + dp) * rwy - rd * dy
-            tqz = -k * (Ri[2, 0] * e[0] + Ri[2, 1] * e[1] + Ri[2, 2] * e[2]) \
-                - (dd + dp) * rwz - rd * dz
+            tqx = -k * (Ri[0] * e[0] + Ri[1] * e[1] + Ri[2] * e[2]) - (dd + dp) * rwx - rd * dx
+            tqy = -k * (Ri[3] * e[0] + Ri[4] * e[1] + Ri[5] * e[2]) - (dd + dp) * rwy - rd * dy
+            tqz = -k * (Ri[6] * e[0] + Ri[7] * e[1] + Ri[8] * e[2]) - (dd + dp) * rwz - rd * dz
             # the damping is implicit too: D gets h times the damping (anisotropic)
             cj = GAMMA * h * h * k + h * (dd + dp)
             ct = h * (dt_ - dp)
-            D[0, 0] = J[0, 0] + cj + ct * dx * dx
-            D[1, 1] = J[1, 1] + cj + ct * dy * dy
-            D[2, 2] = J[2, 2] + cj + ct * dz * dz
-            D[0, 1] = D[1, 0] = J[0, 1] + ct * dx * dy
-            D[0, 2] = D[2, 0] = J[0, 2] + ct * dx * dz
-            D[1, 2] = D[2, 1] = J[1, 2] + ct * dy * dz
-            _inv_sym3(D, S)
-            _lock_twist(S, dx, dy, dz)
-            for a in range(3):
-                for b in range(3):
-                    Dinv[i, a, b] = S[a, b]
-                    U_A[i, a, b] = J[a, b]
-                    U_B[i, a, b] = B[a, b]
+            d01, d02, d12 = Jm[1] + ct * dx * dy, Jm[2] + ct * dx * dz, Jm[5] + ct * dy * dz
+            Sm = _without_twist(_inverse_sym3((Jm[0] + cj + ct * dx * dx, d01, d02,
+                                               d01, Jm[4] + cj + ct * dy * dy, d12,
+                                               d02, d12, Jm[8] + cj + ct * dz * dz)),
+                                dx, dy, dz)
+            _store3(Sm, Dinv[i])
+            _store3(Jm, U_A[i])
+            _store3(Bm, U_B[i])
             u[i, 0], u[i, 1], u[i, 2] = tqx - pa0, tqy - pa1, tqz - pa2
             if i == 0:
                 break                       # the head takes the root joint's wrench
             # apparent inertia through the joint: I^a = I^A - U D^-1 U^T, U = [J; B^T]
-            for a in range(3):
-                for b in range(3):
-                    T1[a, b] = S[a, 0] * J[0, b] + S[a, 1] * J[1, b] + S[a, 2] * J[2, b]
-                    T2[a, b] = S[a, 0] * B[0, b] + S[a, 1] * B[1, b] + S[a, 2] * B[2, b]
-            for a in range(3):
-                for b in range(3):
-                    Q[a, b] = J[a, b] - (J[a, 0] * T1[0, b] + J[a, 1] * T1[1, b]
-                                         + J[a, 2] * T1[2, b])          # A^a
-                    E[a, b] = B[a, b] - (J[a, 0] * T2[0, b] + J[a, 1] * T2[1, b]
-                                         + J[a, 2] * T2[2, b])          # B^a
-                    D[a, b] = M[a, b] - (B[0, a] * T2[0, b] + B[1, a] * T2[1, b]
-                                         + B[2, a] * T2[2, b])          # M^a
+            # (3x3 blocks as 9-tuples, row-major: they stay in registers)
+            Aa = _sub3(Jm, _mul3(Jm, _mul3(Sm, Jm)))
+            SB = _mul3(Sm, Bm)
+            Ba = _sub3(Bm, _mul3(Jm, SB))
+            Ma = _sub3(Mm, _mul3(_transpose3(Bm), SB))
             # bias: p^a = p^A + I^a c + U D^-1 u, c = [0; w_p x (w_p x a_p)] (a_p: parent rod)
             lp = length[s, i - 1]
-            av[0], av[1], av[2] = lp * R[s, i - 1, 0, 2], lp * R[s, i - 1, 1, 2], \
-                lp * R[s, i - 1, 2, 2]
-            w[0], w[1], w[2] = wm[i - 1, 0], wm[i - 1, 1], wm[i - 1, 2]
-            _cross(w, av, t4)
-            _cross(w, t4, t4)
-            for a in range(3):
-                y3[a] = S[a, 0] * u[i, 0] + S[a, 1] * u[i, 1] + S[a, 2] * u[i, 2]
-            for a in range(3):
-                qa[a] = E[a, 0] * t4[0] + E[a, 1] * t4[1] + E[a, 2] * t4[2] + \
-                    J[a, 0] * y3[0] + J[a, 1] * y3[1] + J[a, 2] * y3[2]
-                ql[a] = D[a, 0] * t4[0] + D[a, 1] * t4[1] + D[a, 2] * t4[2] + \
-                    B[0, a] * y3[0] + B[1, a] * y3[1] + B[2, a] * y3[2]
-            qa0, qa1, qa2 = pa0 + qa[0], pa1 + qa[1], pa2 + qa[2]
-            ql0, ql1, ql2 = pl0 + ql[0], pl1 + ql[1], pl2 + ql[2]
+            ax, ay, az = lp * R[s, i - 1, 0, 2], lp * R[s, i - 1, 1, 2], lp * R[s, i - 1, 2, 2]
+            wx, wy, wz = wm[i - 1, 0], wm[i - 1, 1], wm[i - 1, 2]
+            cx, cy, cz = wy * az - wz * ay, wz * ax - wx * az, wx * ay - wy * ax
+            cx, cy, cz = wy * cz - wz * cy, wz * cx - wx * cz, wx * cy - wy * cx
+            y0, y1, y2 = _apply3(Sm, u[i, 0], u[i, 1], u[i, 2])
+            qa0, qa1, qa2 = _apply_both3(Ba, (cx, cy, cz), Jm, (y0, y1, y2))
+            ql0, ql1, ql2 = _apply_both3(Ma, (cx, cy, cz), _transpose3(Bm), (y0, y1, y2))
+            qa0, qa1, qa2 = pa0 + qa0, pa1 + qa1, pa2 + qa2
+            ql0, ql1, ql2 = pl0 + ql0, pl1 + ql1, pl2 + ql2
             # move to the parent's joint, a_p back along the parent rod:
             # A' = A - B[a] + [a]B^T - [a]M[a], B' = B + [a]M, M' = M, p'_ang = p_ang + a x p_lin
-            _skew(av, T1)
-            for a in range(3):
-                for b in range(3):
-                    T2[a, b] = T1[a, 0] * D[0, b] + T1[a, 1] * D[1, b] + T1[a, 2] * D[2, b]
-            for a in range(3):
-                for b in range(3):
-                    Acc[i, a, b] = Q[a, b] \
-                        - (E[a, 0] * T1[0, b] + E[a, 1] * T1[1, b] + E[a, 2] * T1[2, b]) \
-                        + (T1[a, 0] * E[b, 0] + T1[a, 1] * E[b, 1] + T1[a, 2] * E[b, 2]) \
-                        - (T2[a, 0] * T1[0, b] + T2[a, 1] * T1[1, b] + T2[a, 2] * T1[2, b])
-                    Bcc[i, a, b] = E[a, b] + T2[a, b]
-                    Mcc[i, a, b] = D[a, b]
-            pang[i, 0] = qa0 + av[1] * ql2 - av[2] * ql1
-            pang[i, 1] = qa1 + av[2] * ql0 - av[0] * ql2
-            pang[i, 2] = qa2 + av[0] * ql1 - av[1] * ql0
+            Ka = (0.0, -az, ay, az, 0.0, -ax, -ay, ax, 0.0)
+            KM = _mul3(Ka, Ma)
+            Ap = _sub3(_add3(_sub3(Aa, _mul3(Ba, Ka)), _mul3(Ka, _transpose3(Ba))),
+                       _mul3(KM, Ka))
+            _store3(Ap, Acc[i])
+            _store3(_add3(Ba, KM), Bcc[i])
+            _store3(Ma, Mcc[i])
+            pang[i, 0] = qa0 + ay * ql2 - az * ql1
+            pang[i, 1] = qa1 + az * ql0 - ax * ql2
+            pang[i, 2] = qa2 + ax * ql1 - ay * ql0
             plin[i, 0], plin[i, 1], plin[i, 2] = ql0, ql1, ql2
         # ---------------- forward pass: accelerations, root to tip
         ax_, ay_, az_ = head.alpha[0], head.alpha[1], head.alpha[2]
@@ -1075,11 +1091,10 @@ def step_chains(state,
                 lz += px_ * by - py_ * bx + wx * cy - wy * cx
                 ax_, ay_, az_ = px_, py_, pz_
             # q'' = D^-1 (u - J alpha_p - B a_p)
-            for a in range(3):
-                t3[a] = u[i, a] - (U_A[i, a, 0] * ax_ + U_A[i, a, 1] * ay_ + U_A[i, a, 2] * az_
-                                   + U_B[i, a, 0] * lx + U_B[i, a, 1] * ly + U_B[i, a, 2] * lz)
-            for a in range(3):
-                alpha[i, a] = Dinv[i, a, 0] * t3[0] + Dinv[i, a, 1] * t3[1] + Dinv[i, a, 2] * t3[2]
+            y0, y1, y2 = _apply_both3(_load3(U_A[i]), (ax_, ay_, az_), _load3(U_B[i]),
+                                      (lx, ly, lz))
+            alpha[i, 0], alpha[i, 1], alpha[i, 2] = _apply3(_load3(Dinv[i]), u[i, 0] - y0,
+                                                            u[i, 1] - y1, u[i, 2] - y2)
             alpha[i, 0] += ax_
             alpha[i, 1] += ay_
             alpha[i, 2] += az_
@@ -1113,37 +1128,25 @@ def step_chains(state,
             wy = omega[s, i, 1] + h * alpha[i, 1]
             wz = omega[s, i, 2] + h * alpha[i, 2]
             f = (1.0 - theta[i]) * h                                   # the rest of the drift
-            exp_so3(f * wx, f * wy, f * wz, E)
-            Ri = R[s, i]
-            for a in range(3):
-                for b in range(3):
-                    Rnew[a, b] = E[a, 0] * Ri[0, b] + E[a, 1] * Ri[1, b] + E[a, 2] * Ri[2, b]
-            _orthonormalize(Rnew)
+            Rn = _orthonormalized(_mul3(rotation_exp(f * wx, f * wy, f * wz), _load3(R[s, i])))
             seg = length[s, i]
-            ex = px + seg * Rnew[0, 2]
-            ey = py + seg * Rnew[1, 2]
-            ez = pz + seg * Rnew[2, 2]
+            ex = px + seg * Rn[2]
+            ey = py + seg * Rn[5]
+            ez = pz + seg * Rn[8]
             if mask != 0:
                 gx, gy, gz, moved = guard_segment((px, py, pz), (ex, ey, ez), seg, spheres, mask,
                                                   GUARD_LIFT, state.sag_by_height)
                 if moved:
                     # turn the rod minimally onto the guarded direction
-                    ox, oy, oz = Rnew[0, 2], Rnew[1, 2], Rnew[2, 2]
+                    ox, oy, oz = Rn[2], Rn[5], Rn[8]
                     nx, ny, nz = (gx - px) / seg, (gy - py) / seg, (gz - pz) / seg
-                    t3[0], t3[1], t3[2] = oy * nz - oz * ny, oz * nx - ox * nz, ox * ny - oy * nx
-                    sn = sqrt(t3[0] ** 2 + t3[1] ** 2 + t3[2] ** 2)
+                    ax, ay, az = oy * nz - oz * ny, oz * nx - ox * nz, ox * ny - oy * nx
+                    sn = sqrt(ax ** 2 + ay ** 2 + az ** 2)
                     cs = ox * nx + oy * ny + oz * nz
                     if sn > 1e-15:
                         ang = np.arctan2(sn, cs)
-                        exp_so3(t3[0] / sn * ang, t3[1] / sn * ang, t3[2] / sn * ang, E)
-                        for a in range(3):
-                            for b in range(3):
-                                Q[a, b] = E[a, 0] * Rnew[0, b] + E[a, 1] * Rnew[1, b] + \
-                                    E[a, 2] * Rnew[2, b]
-                        for a in range(3):
-                            for b in range(3):
-                                Rnew[a, b] = Q[a, b]
-                        _orthonormalize(Rnew)
+                        Rn = _orthonormalized(_mul3(rotation_exp(ax / sn * ang, ay / sn * ang,
+                                                                 az / sn * ang), Rn))
                     # the velocity is mended after the chain is placed, by an impulse
                     # through the articulated inertias (_stop_inward_motion); changing this
                     # rod's angular velocity alone moved every vertex beyond with it and
@@ -1156,20 +1159,17 @@ def step_chains(state,
                             (gx - ex) / gn, (gy - ey) / gn, (gz - ez) / gn
                     ex, ey, ez = gx, gy, gz
                     guards += 1
-            for a in range(3):
-                for b in range(3):
-                    R[s, i, a, b] = Rnew[a, b]
             # 2-DOF joints: a pure bend from the parent (already placed), no twist
-            twist_free_frame(Rh if i == 0 else R[s, i - 1], rest_rel[s, i], R[s, i], T1)
+            _store3(twist_free_rotation(_load3(Rh if i == 0 else R[s, i - 1]),
+                                        _load3(rest_rel[s, i]), Rn), R[s, i])
             # ... and no spin about the rod relative to its parent (it moves no vertex)
             parent_w = (head.w[0], head.w[1], head.w[2]) if i == 0 else \
                 (omega[s, i - 1, 0], omega[s, i - 1, 1], omega[s, i - 1, 2])
-            wx, wy, wz = _without_relative_spin((wx, wy, wz), parent_w,
-                                                (Rnew[0, 2], Rnew[1, 2], Rnew[2, 2]))
+            wx, wy, wz = _without_relative_spin((wx, wy, wz), parent_w, (Rn[2], Rn[5], Rn[8]))
             omega[s, i, 0], omega[s, i, 1], omega[s, i, 2] = wx, wy, wz
             alpha_prev[s, i, 0], alpha_prev[s, i, 1], alpha_prev[s, i, 2] = \
                 alpha[i, 0], alpha[i, 1], alpha[i, 2]
-            bx, by, bz = seg * Rnew[0, 2], seg * Rnew[1, 2], seg * Rnew[2, 2]
+            bx, by, bz = seg * Rn[2], seg * Rn[5], seg * Rn[8]
             vx += wy * bz - wz * by
             vy += wz * bx - wx * bz
             vz += wx * by - wy * bx
@@ -1462,27 +1462,6 @@ def chain_scratch(n_seg):
         alpha=np.zeros((n_seg, 3)),
         wm=np.zeros((n_seg, 3)),  # angular velocities predicted at mid-step
         theta=np.zeros(n_seg),  # share of the drift before the force
-        J=np.zeros((3, 3)),
-        B=np.zeros((3, 3)),
-        M=np.zeros((3, 3)),
-        S=np.zeros((3, 3)),
-        T1=np.zeros((3, 3)),
-        T2=np.zeros((3, 3)),
-        D=np.zeros((3, 3)),
-        e=np.zeros(3),
-        r=np.zeros(3),
-        rc=np.zeros(3),
-        nrm=np.zeros(3),
-        av=np.zeros(3),
-        w=np.zeros(3),
-        t3=np.zeros(3),
-        t4=np.zeros(3),
-        y3=np.zeros(3),
-        qa=np.zeros(3),
-        ql=np.zeros(3),
-        E=np.zeros((3, 3)),
-        Rnew=np.zeros((3, 3)),
-        Q=np.zeros((3, 3)),
         guarded=np.zeros(n_seg, dtype=np.bool_),  # contacts of this step: the guard moved
         g_nrm=np.zeros((n_seg, 3)),  # ... the end, along g_nrm
         u_imp=np.zeros((n_seg, 3)),
