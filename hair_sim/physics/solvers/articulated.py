@@ -169,11 +169,11 @@ ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', '
                                        'inertia_axial',
                                        'offset', 'air', 'friction', 'sag_by_height'])
 # step_chains' scratch (chain_scratch): per-chain arrays reused for every strand and step
-ChainScratch = namedtuple('ChainScratch', ['Acc', 'Bcc', 'Mcc', 'pang', 'plin', 'Dinv', 'U_A',
-                                           'U_B', 'u', 'alpha', 'wm', 'theta', 'guarded',
-                                           'g_nrm', 'u_imp', 'dw', 'rc_imp', 'lam_imp', 'c_seg',
-                                           'c_lever', 'c_nrm', 'c_bound', 'c_load', 'c_lam',
-                                           'c_fric', 't_fric', 'c_dw', 'c_dvn'])
+ChainScratch = namedtuple('ChainScratch', ['Dinv', 'U_A', 'U_B', 'u', 'alpha', 'wm', 'theta',
+                                           'guarded', 'g_nrm', 'u_imp', 'dw', 'rc_imp',
+                                           'lam_imp', 'c_seg', 'c_lever', 'c_nrm', 'c_bound',
+                                           'c_load', 'c_lam', 'c_fric', 't_fric', 'c_dw',
+                                           'c_dvn'])
 
 
 # ------------------------------------------------------------------ 3x3 helpers
@@ -899,7 +899,7 @@ def step_chains(state,
     n_s, n_seg = length.shape
     # per-chain scratch (reused for every strand; see chain_scratch)
     sc = scratch
-    Acc, Bcc, Mcc, pang, plin, Dinv = sc.Acc, sc.Bcc, sc.Mcc, sc.pang, sc.plin, sc.Dinv
+    Dinv = sc.Dinv
     U_A, U_B, u, alpha, wm, theta = sc.U_A, sc.U_B, sc.u, sc.alpha, sc.wm, sc.theta
     guarded, g_nrm, u_imp = sc.guarded, sc.g_nrm, sc.u_imp
     dw, rc_imp, lam_imp, c_seg, c_lever = sc.dw, sc.rc_imp, sc.lam_imp, sc.c_seg, sc.c_lever
@@ -926,7 +926,10 @@ def step_chains(state,
                                 theta[i] * h * omega[s, i, 2])
             _store3(_orthonormalized(_mul3(turn, _load3(R[s, i]))), R[s, i])
         # ---------------- backward pass: articulated inertias, tip to root
-        # (3x3 blocks as row-major 9-tuples, vectors as 3-tuples: they stay in registers)
+        # (3x3 blocks as row-major 9-tuples, vectors as 3-tuples: they stay in registers;
+        # child_*: the articulated inertia and bias of the segment below, seen at its parent)
+        child_A = child_B = child_M = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        child_pa = child_pl = (0.0, 0.0, 0.0)
         for i in range(n_seg - 1, -1, -1):
             seg = length[s, i]
             m = mass[s, i]
@@ -994,15 +997,15 @@ def step_chains(state,
             pl0, pl1, pl2 = fbx - fdx - fex, fby - fdy - fey, fbz - fdz - fez
             # plus the child's articulated inertia and bias, already moved to this joint
             if i < n_seg - 1:
-                Jm = _add3(Jm, _load3(Acc[i + 1]))
-                Bm = _add3(Bm, _load3(Bcc[i + 1]))
-                Mm = _add3(Mm, _load3(Mcc[i + 1]))
-                pa0 += pang[i + 1, 0]
-                pa1 += pang[i + 1, 1]
-                pa2 += pang[i + 1, 2]
-                pl0 += plin[i + 1, 0]
-                pl1 += plin[i + 1, 1]
-                pl2 += plin[i + 1, 2]
+                Jm = _add3(Jm, child_A)
+                Bm = _add3(Bm, child_B)
+                Mm = _add3(Mm, child_M)
+                pa0 += child_pa[0]
+                pa1 += child_pa[1]
+                pa2 += child_pa[2]
+                pl0 += child_pl[0]
+                pl1 += child_pl[1]
+                pl2 += child_pl[2]
             # ball joint i: spring and damper on the relative rotation, implicit part c
             Rp = Rh if i == 0 else R[s, i - 1]
             Ri = _load3(R[s, i])
@@ -1066,13 +1069,10 @@ def step_chains(state,
             KM = _mul3(Ka, Ma)
             Ap = _sub3(_add3(_sub3(Aa, _mul3(Ba, Ka)), _mul3(Ka, _transpose3(Ba))),
                        _mul3(KM, Ka))
-            _store3(Ap, Acc[i])
-            _store3(_add3(Ba, KM), Bcc[i])
-            _store3(Ma, Mcc[i])
-            pang[i, 0] = qa0 + ay * ql2 - az * ql1
-            pang[i, 1] = qa1 + az * ql0 - ax * ql2
-            pang[i, 2] = qa2 + ax * ql1 - ay * ql0
-            plin[i, 0], plin[i, 1], plin[i, 2] = ql0, ql1, ql2
+            child_A, child_B, child_M = Ap, _add3(Ba, KM), Ma
+            child_pa = (qa0 + ay * ql2 - az * ql1, qa1 + az * ql0 - ax * ql2,
+                        qa2 + ax * ql1 - ay * ql0)
+            child_pl = (ql0, ql1, ql2)
         # ---------------- forward pass: accelerations, root to tip
         ax_, ay_, az_ = head.alpha[0], head.alpha[1], head.alpha[2]
         lx, ly, lz = root_acc[s, 0], root_acc[s, 1], root_acc[s, 2]
@@ -1450,11 +1450,6 @@ def chain_scratch(n_seg):
     """
     n_c = 2 * n_seg * CONTACT_SLOTS          # the speculative contacts, at most
     return ChainScratch(
-        Acc=np.zeros((n_seg, 3, 3)),  # articulated blocks seen at each joint
-        Bcc=np.zeros((n_seg, 3, 3)),
-        Mcc=np.zeros((n_seg, 3, 3)),
-        pang=np.zeros((n_seg, 3)),
-        plin=np.zeros((n_seg, 3)),
         Dinv=np.zeros((n_seg, 3, 3)),
         U_A=np.zeros((n_seg, 3, 3)),
         U_B=np.zeros((n_seg, 3, 3)),
