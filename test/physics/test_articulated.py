@@ -231,6 +231,18 @@ def test_springs_between_strands_take_no_energy_from_the_step(head, neighbor_sti
     assert _spring_pair_energy_rise(head, neighbor_stiffness, False) > 0.3   # the lag
 
 
+@pytest.mark.parametrize('angle', [1e-9, 1e-4, 0.05, 0.0999, 0.1001, 0.7, 3.1])
+def test_rotation_exp_is_the_rotation_of_its_vector(angle):
+    """The drift's rotation (series under 0.1 rad, sin and cos above) is scipy's, to roundoff."""
+    rng = np.random.default_rng(int(angle * 1e4))
+    for _ in range(20):
+        axis = rng.normal(size=3)
+        w = angle * axis / np.linalg.norm(axis)
+        ours = np.array(articulated.rotation_exp(*w)).reshape(3, 3)
+        np.testing.assert_allclose(ours, Rotation.from_rotvec(w).as_matrix(), rtol=0,
+                                   atol=1e-15)
+
+
 def test_reruns_are_bit_identical():
     """The same inputs give the same bytes."""
     def run():
