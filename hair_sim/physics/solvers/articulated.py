@@ -452,9 +452,9 @@ def bend_deviation_of(S, e0):
     Return the bend spring's generalised deviation q (child frame): torque -k R q.
 
     S is the joint's rotation from rest (joint_rotation_of, a 9-tuple), v = S z the rod's
-    axis in the
-    rest frame, theta its angle from z and n = z x v / sin(theta) the bend's axis. The
-    spring's energy k E (bend_energy) is a function of v alone (the joints have no twist).
+    axis in the rest frame, theta its angle from z and n = z x v / sin(theta) the bend's
+    axis. The spring's energy k E (bend_energy) is a function of v alone (the joints have
+    no twist).
     A turn delta of the rod changes theta by delta.n and the bend plane's azimuth psi by
     delta.m / sin(theta), m = (z - v cos(theta)) / sin(theta), so the torque is -k
     (dE/dtheta n + dE/dpsi / sin(theta) m), written without the cancellations of a
