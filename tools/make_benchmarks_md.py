@@ -276,33 +276,27 @@ def hanging_section(rows):
             '1.50-1.63 -> 0.99-1.05 at 1000 x 20; the chain '
             'kernel alone 0.45 -> 0.22 us a segment-substep. '
             + '%.3f, %.3f, %.2f and %.2f s/s at 50 x 10, 50 x 20, 200 x 20 and 1000 x 20 in '
-            'this run. ' % (cost_of(accuracy, 10), cost_of(accuracy, 20),
+            'this run. ' % (at_frame[10]['wall_s_per_sim_s'], at_frame[20]['wall_s_per_sim_s'],
                             cost[(200, 'hair_sim articulated')],
                             cost[(1000, 'hair_sim articulated')])
-            + speed_target(cost, accuracy, tip_z), '']
+            + speed_target(cost, accuracy, at_frame, tip_z), '']
 
 
-def cost_of(accuracy, segments):
-    """Return the articulated model's cost at one step per 60 Hz frame on 50 x segments."""
-    return next(r['wall_s_per_sim_s'] for r in accuracy
-                if r['solver'] == 'hair_sim articulated' and r['segments'] == segments
-                and r['step'] == '1/60')
+def flex_times(cost, solver='mujoco flex'):
+    """Return (strands, flex cost or None, times the articulated model's) at 200 and 1000."""
+    return [(n, cost.get((n, solver)), (cost.get((n, solver)) or 0.0)
+             / cost[(n, 'hair_sim articulated')]) for n in (200, 1000)]
 
 
 def flex_speed(cost):
     """Return the sentence on the flexes' cost against the articulated model's."""
-    out = []
-    for n in (200, 1000):
-        flex = cost.get((n, 'mujoco flex'))
-        if flex:
-            out.append('%.1f s/s at %d x 20, %.0f times the articulated model'
-                       % (flex, n, flex / cost[(n, 'hair_sim articulated')]))
-        else:
-            out.append('at %d x 20 MuJoCo failed (see the JSON)' % n)
-    return 'At one step per 60 Hz frame they cost %s.' % '; '.join(out)
+    return 'At one step per 60 Hz frame they cost %s.' % '; '.join(
+        '%.1f s/s at %d x 20, %.0f times the articulated model' % (flex, n, times) if flex
+        else 'at %d x 20 MuJoCo failed (see the JSON)' % n
+        for n, flex, times in flex_times(cost))
 
 
-def flex_error_ratio(accuracy):
+def flex_error_ratio(accuracy, at_frame):
     """
     Return (least, most) of a flex's tip error over the articulated model's at 1/60 s.
 
@@ -313,8 +307,7 @@ def flex_error_ratio(accuracy):
     for r in accuracy:
         if r['solver'] != 'mujoco flex':
             continue
-        ours = next(a for a in accuracy if a['solver'] == 'hair_sim articulated'
-                    and a['segments'] == r['segments'] and a['step'] == '1/60')
+        ours = at_frame[r['segments']]
         for ref in ('mujoco', 'pyelastica'):
             key = 'tip_rms_vs_%s_m' % ref
             if r.get(key) and ours.get(key):
@@ -322,32 +315,33 @@ def flex_error_ratio(accuracy):
     return min(ratios), max(ratios)
 
 
-def speed_target(cost, accuracy, tip_z):
+def speed_target(cost, accuracy, at_frame, tip_z):
     """Return the sentence on the issue's speed target (20 times under MuJoCo, same run)."""
-    times = ['%.0f times at %d x 20'
-             % (cost[(n, 'mujoco flex')] / cost[(n, 'hair_sim articulated')], n)
-             for n in (200, 1000) if cost.get((n, 'mujoco flex'))]
+    flex = flex_times(cost)
+    times = ['%.0f times at %d x 20' % (t, n) for n, c, t in flex if c]
     return ("The issue's speed target is 20 times under MuJoCo measured in the same run, at "
             'equal or better tip error: against the flexes, whose tips end %.1f-%.1f times '
             'as far from the references at every step (against the articulated model at '
             '1/60 s), this run gives %s; against the '
             'capsule chain (the reference) %.0f and %.0f times. Its absolute figures, '
             "0.045 and 0.9 s/s, came from the flexes as measured when the issue was filed "
-            '(0.89 and 17.7 s/s; %.1f and %.1f here, with their edges held by equality '
+            '(0.89 and 17.7 s/s; %s here, with their edges held by equality '
             'constraints so that they do not stretch as they fall%s): %.2f and %.2f s/s are '
             'still over them, about 2.8 substeps a strand a frame over the 2 s fall (1 each '
             'once the strands hang) at about 0.31 us per segment-substep, forces included.'
-            % (flex_error_ratio(accuracy) + (' and '.join(times),)
-               + (cost[(200, 'mujoco')] / cost[(200, 'hair_sim articulated')],
-               cost[(1000, 'mujoco')] / cost[(1000, 'hair_sim articulated')],
-               cost[(200, 'mujoco flex')], cost[(1000, 'mujoco flex')], free_edges(cost, tip_z),
-               cost[(200, 'hair_sim articulated')], cost[(1000, 'hair_sim articulated')])))
+            % (flex_error_ratio(accuracy, at_frame)
+               + (' and '.join(times),
+                  cost[(200, 'mujoco')] / cost[(200, 'hair_sim articulated')],
+                  cost[(1000, 'mujoco')] / cost[(1000, 'hair_sim articulated')],
+                  ' and '.join('%.1f' % c if c else 'failed' for _, c, _ in flex),
+                  free_edges(cost, tip_z),
+                  cost[(200, 'hair_sim articulated')], cost[(1000, 'hair_sim articulated')])))
 
 
 def free_edges(cost, tip_z):
     """Return the clause on the flexes without their edges' equality constraints."""
-    rows = [(n, cost[(n, 'mujoco flex, edges free')], tip_z[(n, 'mujoco flex, edges free')])
-            for n in (200, 1000) if cost.get((n, 'mujoco flex, edges free'))]
+    rows = [(n, c, tip_z[(n, 'mujoco flex, edges free')])
+            for n, c, _ in flex_times(cost, 'mujoco flex, edges free') if c]
     if not rows:
         return ''
     return ('; without those constraints they cost %s, but the strands do not keep their '
