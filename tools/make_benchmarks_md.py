@@ -12,9 +12,12 @@ Write BENCHMARKS.md from the JSON and plots of a full benchmark run in doc/bench
 
 import json
 import os
+import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BENCH = os.path.join(ROOT, 'doc', 'bench')
+sys.path.insert(0, ROOT)
+from hair_sim.render.culling import PROOF_REST  # noqa: E402  (the rule the text states)
 
 
 def load(name):
@@ -603,7 +606,7 @@ def main():
               'rows grown by the fix-up length, their walls are hidden whatever they turn out '
               'to be, and only the other rows are projected onto the scalp. A strip whose '
               'proof failed (all its simulated vertices in shadow, yet some part may be '
-              'seen: the silhouette) is drawn without a proof for the next 8 calls, unless '
+              'seen: the silhouette) is drawn without a proof for the next %d calls, unless '
               'the view jumps. A strip proven hidden keeps its proof\'s certificate (per '
               'row, the level that held it and its spheres), and the next call checks that '
               'first: the proof again, of the strands as they are then, without the search '
@@ -617,7 +620,8 @@ def main():
               'Downstream, '
               'culling always saves the triangles sent to meshcat and drawn. The test costs '
               '%.3f ms on thesis_long.'
-              % (culling_savings(skip), culling_verdict(skip), culling_test_ms), '']
+              % (PROOF_REST, culling_savings(skip), culling_verdict(skip), culling_test_ms),
+              '']
     cases = stress['cases']
     parts += ['## Numerical stability under abuse (`hair_sim_bench stress --json`)', '',
               'Promised: the solver\'s own stability check accepts the parameters at that '
