@@ -163,7 +163,7 @@ def pendulum_records(dts, duration):
 
 # ------------------------------------------------------------------ 2. chain
 def chain_reference(n, length, duration, params, springs='absolute', joint_damping_share=1.0,
-                    air_damping=0.0):
+                    air_damping=0.0, base=None, root_stiffness_scale=1.0, hanging=False):
     """
     Exact planar chain of n rods, absolute angles phi from the horizontal (y up).
 
@@ -175,10 +175,17 @@ def chain_reference(n, length, duration, params, springs='absolute', joint_dampi
     hanging straight down (Rayleigh function sum d_i (phi_i' - phi_{i-1}')^2 / 2).
     air_damping (1/s): a force -air_damping m v on every rod's centre (its generalized
     force is -air_damping times the translational part of the mass matrix times phi').
+    base (relative springs only): t -> (beta, beta'), the base turning about the root in
+    the chain's plane, phi-wise (the first joint's angle is phi_1 - beta - rest, its
+    damper works on phi_1' - beta'); root_stiffness_scale multiplies the first joint's k
+    (a stiff first joint makes the system stiff: it is then integrated by Radau). The
+    chain starts at rest, horizontal, or with `hanging` hanging straight down.
     """
     from scipy.integrate import solve_ivp
     m = params.linear_density * length
     k = params.bending_stiffness / length
+    k_joint = np.full(n, k)
+    k_joint[0] *= root_stiffness_scale
     i_end = m * length ** 2 / 3.0
     i_c = m * length ** 2 / 12.0
     rest = -math.pi / 2
@@ -188,7 +195,7 @@ def chain_reference(n, length, duration, params, springs='absolute', joint_dampi
     offset[0] = rest
     beyond = np.array([m * sum((j - i + 0.5) ** 2 * length ** 2 + length ** 2 / 12.0
                                for j in range(i, n)) for i in range(n)])
-    joint_damping = diff.T @ np.diag(joint_damping_share * params.damping * beyond) @ diff
+    d_joint = joint_damping_share * params.damping * beyond
     # a[k, i]: lever of rod i's angle in the position of rod k's centre
     a = np.zeros((n, n))
     for kk in range(n):
@@ -197,20 +204,33 @@ def chain_reference(n, length, duration, params, springs='absolute', joint_dampi
     c = (m * a[:, :, None] * a[:, None, :]).sum(axis=0)       # c_ij = sum_k m a_ki a_kj
     g_lever = m * a.sum(axis=0)                               # sum_k m a_ki
 
-    def rhs(_t, y):
+    def rhs(t, y):
         phi, w = y[:n], y[n:]
         between = phi[:, None] - phi[None, :]
         M = c * np.cos(between) + np.diag(np.full(n, i_c))
         if springs == 'absolute':
             q = -k * (phi - rest) - params.damping * i_end * w
         else:
-            q = -k * diff.T @ (diff @ phi - offset) - joint_damping @ w
+            rel = diff @ phi - offset
+            rel_w = diff @ w
+            if base is not None:
+                beta, beta_rate = base(t)
+                rel[0] -= beta
+                rel_w[0] -= beta_rate
+            q = -diff.T @ (k_joint * rel) - diff.T @ (d_joint * rel_w)
         q = q - params.gravity * np.cos(phi) * g_lever - air_damping * (c * np.cos(between)) @ w
         rhs_q = q - (c * np.sin(between) * w[None, :] ** 2).sum(axis=1)
         return np.concatenate([w, np.linalg.solve(M, rhs_q)])
 
-    sol = solve_ivp(rhs, (0.0, duration), np.zeros(2 * n), method='DOP853', rtol=1e-10,
-                    atol=1e-12, dense_output=True)
+    y0 = np.zeros(2 * n)
+    if hanging:
+        y0[:n] = rest
+    # (hanging, the start is an equilibrium: the derivative there is 0 and the first
+    # step guessed from it is so long that the trial states overflow)
+    sol = solve_ivp(rhs, (0.0, duration), y0,
+                    method='DOP853' if root_stiffness_scale <= 10.0 else 'Radau',
+                    rtol=1e-10, atol=1e-12, dense_output=True,
+                    first_step=1e-5 if hanging else None)
 
     def vertices(times):
         phi = sol.sol(times)[:n].T                                # (T, n)
@@ -232,12 +252,14 @@ def articulated_pendulum_reference(length, amplitude, duration, params):
     return pendulum_reference(length, amplitude, duration, params, damping_rate=rate)
 
 
-def articulated_chain_reference(n, length, duration, params):
+def articulated_chain_reference(n, length, duration, params, base=None, hanging=False):
     """Return chain_reference with the articulated model's springs and damping law."""
     from hair_sim.physics.solvers import articulated
     return chain_reference(n, length, duration, params, springs='relative',
                            joint_damping_share=articulated.JOINT_DAMPING_SHARE,
-                           air_damping=articulated.ArticulatedSolver.air_damping_rate(params))
+                           air_damping=articulated.ArticulatedSolver.air_damping_rate(params),
+                           base=base, root_stiffness_scale=params.root_stiffness_scale,
+                           hanging=hanging)
 
 
 def chain_records(dts, duration):

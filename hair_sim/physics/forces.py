@@ -62,7 +62,8 @@ MIN_SIN_THETA = 3            # smallest sin(theta) eqs. 1-6 were evaluated at (A
 TURN_CLAMPS = 4              # steps clamped to MAX_TURN (Anjyo model)
 N_STATS = 5
 
-HeadKinematics = namedtuple('HeadKinematics', ['R', 'p', 'v', 'a', 'w', 'alpha'])
+HeadKinematics = namedtuple('HeadKinematics', ['R', 'p', 'v', 'a', 'w', 'alpha', 'turn',
+                                               't'])
 Strands = namedtuple('Strands', ['pos', 'pos_prev', 'vel', 'length', 'mass'])
 Bodies = namedtuple('Bodies', ['spheres', 'sphere_vel', 'masks'])
 # contact: per segment, the stiffness and damping (N/m, N s/m) of its contact with a sphere,

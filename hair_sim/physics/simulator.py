@@ -219,7 +219,8 @@ class HairSimulator:
     def head_kinematics(self):
         """Return the head's pose, velocities and accelerations of this step."""
         return F.HeadKinematics(R=np.ascontiguousarray(self._R), p=self._p, v=self._v,
-                                a=self._a, w=self._w, alpha=self._alpha)
+                                a=self._a, w=self._w, alpha=self._alpha, turn=self._turn,
+                                t=self._pose_time)
 
     # ----------------------------------------------------------------- state
     def _place_at_rest(self):
@@ -232,6 +233,8 @@ class HairSimulator:
         self._w = np.zeros(3)
         self._a = np.zeros(3)
         self._alpha = np.zeros(3)
+        self._turn = np.zeros(3)
+        self._pose_time = self.time
         self.last_dt = DEFAULT_DT
         self._quiet = 0.0
         self._quiet_ref = None
@@ -378,6 +381,8 @@ class HairSimulator:
     # ----------------------------------------------------------------- stepping
     def _advance_head(self, t, h):
         """Move the head to its pose at time t; return True if it moved."""
+        self._turn = np.zeros(3)                  # (unless the head turns in this step)
+        self._pose_time = t
         pose = self.motion.pose_at(t)
         if pose is None:
             return False
@@ -399,6 +404,9 @@ class HairSimulator:
             self._wake('teleport')
             return True
         p = self.params
+        # the pose's own turn over the step, at a constant rate (world frame): where the
+        # head is between the two poses (the base the chains' roots are jointed to)
+        self._turn = rotation_vector(R_new @ self._R.T) / h
         kin, moved = filter_head_motion(
             (p_new, R_new),
             (self._p, self._R, self._v, self._w),
@@ -720,7 +728,9 @@ class HairSimulator:
             c['kernel_calls'] += 1
         if not self.solver.springs_before_contacts:
             walls = self._strip_springs_pass(strands, bodies, forces, settings)
-        segments = self.solver.step(self, strand_h, head)
+        if strand_t is None:                    # (every strand ends with the substep)
+            strand_t = np.full(len(strand_h), settings.t)
+        segments = self.solver.step(self, strand_h, head, strand_t)
         c['kernel_calls'] += 1
         return checks, contacts, walls, segments
 
@@ -775,3 +785,19 @@ def stability_problem(params, sim, dt):
     """
     length = np.asarray(getattr(sim, 'length', sim), dtype=np.float64)
     return SOLVERS[params.model].stability_problem(params, length, dt, STABILITY_MARGIN)
+
+
+def rotation_vector(R):
+    """Return the rotation vector (axis times angle, angle in [0, pi]) of the rotation R."""
+    c = min(1.0, max(-1.0, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)))
+    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    s = 0.5 * math.sqrt(v @ v)
+    angle = math.atan2(s, c)
+    if s < 1e-8:
+        if c > 0.0:
+            return 0.5 * v                      # (sin x / x -> 1)
+        # a half turn: the axis is the column of R + I of largest norm
+        B = R + np.eye(3)
+        a = B[:, np.argmax((B * B).sum(axis=0))]
+        return math.pi * a / math.sqrt(a @ a)
+    return angle / (2.0 * s) * v

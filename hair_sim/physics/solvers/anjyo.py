@@ -836,12 +836,12 @@ class AnjyoSolver:
         """Return 1 for every strand: the model takes every step whole (MAX_TURN clamps)."""
         return self._whole
 
-    def step(self, sim, strand_h, head):
+    def step(self, sim, strand_h, head, strand_t):
         """
         Advance eqs. 1-6 with the forces in sim.forces; return segments updated.
 
-        strand_h is each strand's step; this model takes every step whole, so they are one
-        h (substeps_for is 1 for every strand).
+        strand_h is each strand's step, strand_t when it ends; this model takes every step
+        whole, so they are one h and one t (substeps_for is 1 for every strand).
         """
         p = sim.params
         return integrate_strands(

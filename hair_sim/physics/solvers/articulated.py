@@ -652,7 +652,7 @@ def _stop_inward_motion(s,
     for j in range(n_seg):
         seg = length[s, j]
         dx, dy, dz = R[s, j, 0, 2], R[s, j, 1, 2], R[s, j, 2, 2]
-        parent_w = (head.w[0], head.w[1], head.w[2]) if j == 0 else \
+        parent_w = (head.turn[0], head.turn[1], head.turn[2]) if j == 0 else \
             (omega[s, j - 1, 0], omega[s, j - 1, 1], omega[s, j - 1, 2])
         omega[s, j, 0], omega[s, j, 1], omega[s, j, 2] = _without_relative_spin(
             (omega[s, j, 0], omega[s, j, 1], omega[s, j, 2]), parent_w, (dx, dy, dz))
@@ -882,11 +882,13 @@ def step_chains(state,
                 root_acc,
                 bodies,
                 collide,
-                strand_h,
+                timing,
                 stats,
                 scratch):
     """
-    Advance each strand's chain by its own step strand_h (articulated-body algorithm).
+    Advance each strand's chain by its own step (articulated-body algorithm).
+
+    timing is (strand_h, strand_t): each strand's step (0: it waits) and when it ends.
 
     See the module text; a strand whose strand_h is 0 waits (the simulator's multirate).
 
@@ -914,7 +916,9 @@ def step_chains(state,
     c_fric, t_fric, c_dw, c_dvn = sc.c_fric, sc.t_fric, sc.c_dw, sc.c_dvn
     max_rate = 0.0
     guards = 0
-    Rh = head.R
+    Rh = _load3(head.R)
+    strand_h, strand_t = timing
+    spin = head.turn
     updated = 0
     for s in range(n_s):
         h = strand_h[s]
@@ -932,6 +936,13 @@ def step_chains(state,
             turn = rotation_exp(theta[i] * h * omega[s, i, 0], theta[i] * h * omega[s, i, 1],
                                 theta[i] * h * omega[s, i, 2])
             _store3(_orthonormalized(_mul3(turn, _load3(R[s, i]))), R[s, i])
+        # The head between its poses (it turns at head.turn over the step; head.R is its
+        # pose at the step's end, head.t): the base of the root joint where the strand's
+        # configuration is, at mid-step (Rb_mid), and at the end of its own step (Rb_end)
+        lag = head.t - strand_t[s]
+        Rb_end = _mul3(rotation_exp(-lag * spin[0], -lag * spin[1], -lag * spin[2]), Rh)
+        lag += (1.0 - theta[0]) * h
+        Rb_mid = _mul3(rotation_exp(-lag * spin[0], -lag * spin[1], -lag * spin[2]), Rh)
         # ---------------- backward pass: articulated inertias, tip to root
         # (3x3 blocks as row-major 9-tuples, vectors as 3-tuples: they stay in registers;
         # child_*: the articulated inertia and bias of the segment below, seen at its parent)
@@ -1014,17 +1025,17 @@ def step_chains(state,
                 pl1 += child_pl[1]
                 pl2 += child_pl[2]
             # ball joint i: spring and damper on the relative rotation, implicit part c
-            Rp = Rh if i == 0 else R[s, i - 1]
+            Rp = Rb_mid if i == 0 else _load3(R[s, i - 1])
             Ri = _load3(R[s, i])
-            e = bend_deviation_of(joint_rotation_of(_load3(Rp), _load3(rest_rel[s, i]), Ri),
+            e = bend_deviation_of(joint_rotation_of(Rp, _load3(rest_rel[s, i]), Ri),
                                   offset[s, i])
             k = kj[s, i]
             dd = dj[s, i]
             # the implicit spring and damper work from the start-of-step velocities
             if i == 0:
-                rwx = omega[s, i, 0] - head.w[0]
-                rwy = omega[s, i, 1] - head.w[1]
-                rwz = omega[s, i, 2] - head.w[2]
+                rwx = omega[s, i, 0] - spin[0]
+                rwy = omega[s, i, 1] - spin[1]
+                rwz = omega[s, i, 2] - spin[2]
             else:
                 rwx = omega[s, i, 0] - omega[s, i - 1, 0]
                 rwy = omega[s, i, 1] - omega[s, i - 1, 1]
@@ -1167,10 +1178,10 @@ def step_chains(state,
                     ex, ey, ez = gx, gy, gz
                     guards += 1
             # 2-DOF joints: a pure bend from the parent (already placed), no twist
-            _store3(twist_free_rotation(_load3(Rh if i == 0 else R[s, i - 1]),
+            _store3(twist_free_rotation(Rb_end if i == 0 else _load3(R[s, i - 1]),
                                         _load3(rest_rel[s, i]), Rn), R[s, i])
             # ... and no spin about the rod relative to its parent (it moves no vertex)
-            parent_w = (head.w[0], head.w[1], head.w[2]) if i == 0 else \
+            parent_w = (spin[0], spin[1], spin[2]) if i == 0 else \
                 (omega[s, i - 1, 0], omega[s, i - 1, 1], omega[s, i - 1, 2])
             wx, wy, wz = _without_relative_spin((wx, wy, wz), parent_w, (Rn[2], Rn[5], Rn[8]))
             omega[s, i, 0], omega[s, i, 1], omega[s, i, 2] = wx, wy, wz
@@ -1183,7 +1194,7 @@ def step_chains(state,
             pos[s, i + 1, 0], pos[s, i + 1, 1], pos[s, i + 1, 2] = ex, ey, ez
             vel[s, i + 1, 0], vel[s, i + 1, 1], vel[s, i + 1, 2] = vx, vy, vz
             if i == 0:
-                qx, qy, qz = wx - head.w[0], wy - head.w[1], wz - head.w[2]
+                qx, qy, qz = wx - spin[0], wy - spin[1], wz - spin[2]
             else:
                 qx, qy, qz = wx - omega[s, i - 1, 0], wy - omega[s, i - 1, 1], \
                     wz - omega[s, i - 1, 2]
@@ -1286,7 +1297,7 @@ def chain_step(state,
                                 attach.root_acc,
                                 bodies,
                                 settings.collisions,
-                                strand_h,
+                                (strand_h, strand_t),
                                 stats,
                                 scratch)
     return checks, contacts, walls, segments
@@ -1623,11 +1634,11 @@ class ArticulatedSolver:
         strand_swings(self.R, self.omega, self._swings)
         return ~(h * self._swings <= OUTRAN_FACTOR * MAX_STEP_ROTATION * counts)
 
-    def step(self, sim, strand_h, head):
+    def step(self, sim, strand_h, head, strand_t):
         """
         Advance each chain by its strand_h (0: it waits) with the forces in sim.forces.
 
-        Returns the segments updated.
+        strand_t is when each strand's step ends. Returns the segments updated.
         """
         return step_chains(
             self.state(),
@@ -1639,7 +1650,7 @@ class ArticulatedSolver:
             sim.root_acc,
             sim.bodies,
             sim.params.collisions,
-            strand_h,
+            (strand_h, strand_t),
             sim.stats,
             self.scratch,
         )
