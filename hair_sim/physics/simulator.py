@@ -16,7 +16,8 @@ import numpy as np
 from hair_sim.modeling.head import MAX_SPHERES
 from hair_sim.modeling.strips import build_strips
 from hair_sim.physics import forces as F
-from hair_sim.physics.motion import filter_head_motion, HeadMotion, quat_to_matrix
+from hair_sim.physics.motion import (filter_head_motion, HeadMotion, quat_to_matrix,
+                                     rotation_vector)
 from hair_sim.physics.params import PhysicsParams
 from hair_sim.physics.solvers.anjyo import AnjyoSolver
 from hair_sim.physics.solvers.articulated import ArticulatedSolver
@@ -785,19 +786,3 @@ def stability_problem(params, sim, dt):
     """
     length = np.asarray(getattr(sim, 'length', sim), dtype=np.float64)
     return SOLVERS[params.model].stability_problem(params, length, dt, STABILITY_MARGIN)
-
-
-def rotation_vector(R):
-    """Return the rotation vector (axis times angle, angle in [0, pi]) of the rotation R."""
-    c = min(1.0, max(-1.0, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)))
-    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    s = 0.5 * math.sqrt(v @ v)
-    angle = math.atan2(s, c)
-    if s < 1e-8:
-        if c > 0.0:
-            return 0.5 * v                      # (sin x / x -> 1)
-        # a half turn: the axis is the column of R + I of largest norm
-        B = R + np.eye(3)
-        a = B[:, np.argmax((B * B).sum(axis=0))]
-        return math.pi * a / math.sqrt(a @ a)
-    return angle / (2.0 * s) * v

@@ -40,7 +40,11 @@ between joints are pure translations along the rods):
   damper folded in, c = GAMMA h^2 k + h d (DART does this in its GenericJoint);
 - forward (root to tip): joint accelerations q'' = D^-1 (u - U^T a_parent) from the head's
   own motion (the base motion: its angular acceleration and the root's acceleration),
-  so a head turn's lag comes out of the dynamics, not from an added force;
+  so a head turn's lag comes out of the dynamics, not from an added force; the root
+  joint's spring, damper and twist lock work against the head where the strand is in the
+  step, between the step's two poses (turned back from the end pose at the poses' own
+  rate, HeadKinematics.turn), not against the end pose: that was a step's turn ahead,
+  and a clamped follicle snapped onto it and back until the step diverged;
 - the drift on SO(3): R <- Exp(h omega) R, in two parts around the kick (below).
 
 The spring is taken as -k (e + GAMMA h (omega_rel+ - delta omega_rel)): for a linear spring
