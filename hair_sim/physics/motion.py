@@ -73,8 +73,10 @@ def filter_head_motion(new_pose,
     From the pose last = (p_old, R_old, v, w), with the filtered linear and angular
     velocities v and w so far, to new_pose = (p_new, R_new) in h seconds; the filter weight
     beta = h / (smoothing + h); limits = (max acceleration, max angular acceleration).
-    Returns (kinematics, moved): kinematics rows are the new v, w, a, alpha; moved says
-    whether the pose changed by more than 1e-9.
+    Returns (kinematics, moved): kinematics rows are the new v, w, a, alpha and the pose's
+    own turn over the step, unfiltered (the rotation vector of R_new R_old^T over h, world
+    frame: the rate the head turns at between the two poses); moved says whether the pose
+    changed by more than 1e-9.
     """
     p_new, R_new = new_pose
     p_old, R_old, v, w = last
@@ -85,7 +87,7 @@ def filter_head_motion(new_pose,
             dR[i, j] = R_new[i, 0] * R_old[j, 0] + R_new[i, 1] * R_old[j, 1] + \
                 R_new[i, 2] * R_old[j, 2]
     rv = rotation_vector(dR)
-    out = np.empty((4, 3))
+    out = np.empty((5, 3))
     moved = False
     for k in range(3):
         if abs(p_new[k] - p_old[k]) > 1e-9:
@@ -97,6 +99,7 @@ def filter_head_motion(new_pose,
         out[1, k] = w[k] + beta * (rv[k] / h - w[k])
         out[2, k] = (out[0, k] - v[k]) / h
         out[3, k] = (out[1, k] - w[k]) / h
+        out[4, k] = rv[k] / h
     for row, limit in ((2, max_acceleration), (3, max_angular_acceleration)):
         n = math.sqrt(out[row, 0] ** 2 + out[row, 1] ** 2 + out[row, 2] ** 2)
         if n > limit:

@@ -16,8 +16,7 @@ import numpy as np
 from hair_sim.modeling.head import MAX_SPHERES
 from hair_sim.modeling.strips import build_strips
 from hair_sim.physics import forces as F
-from hair_sim.physics.motion import (filter_head_motion, HeadMotion, quat_to_matrix,
-                                     rotation_vector)
+from hair_sim.physics.motion import filter_head_motion, HeadMotion, quat_to_matrix
 from hair_sim.physics.params import PhysicsParams
 from hair_sim.physics.solvers.anjyo import AnjyoSolver
 from hair_sim.physics.solvers.articulated import ArticulatedSolver
@@ -405,9 +404,6 @@ class HairSimulator:
             self._wake('teleport')
             return True
         p = self.params
-        # the pose's own turn over the step, at a constant rate (world frame): where the
-        # head is between the two poses (the base the chains' roots are jointed to)
-        self._turn = rotation_vector(R_new @ self._R.T) / h
         kin, moved = filter_head_motion(
             (p_new, R_new),
             (self._p, self._R, self._v, self._w),
@@ -415,7 +411,9 @@ class HairSimulator:
             h,
             (p.max_head_acceleration, p.max_head_acceleration / ANGULAR_ACCELERATION_LEVER),
         )
-        self._v, self._w, self._a, self._alpha = kin
+        # (and the pose's own turn over the step, at a constant rate, world frame: where
+        # the head is between the two poses, the base the chains' roots are jointed to)
+        self._v, self._w, self._a, self._alpha, self._turn = kin
         self._R, self._p = R_new, p_new.copy()
         return moved
 

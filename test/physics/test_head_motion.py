@@ -146,7 +146,11 @@ def test_rotation_vector_matches_scipy_including_half_turns():
 
 
 def test_head_filter_reaches_a_steady_turn_and_clamps_its_acceleration():
-    """Under a steady turn the filtered w tends to the turn rate; a jump in it is clamped."""
+    """
+    Under a steady turn the filtered w tends to the turn rate; a jump in it is clamped.
+
+    The turn between the two poses (the fifth row) is the rate itself at every step.
+    """
     from scipy.spatial.transform import Rotation
     from hair_sim.physics.motion import filter_head_motion
     h, rate, beta = 1.0 / 240, np.array([0.3, -1.2, 0.5]), 0.2
@@ -161,6 +165,7 @@ def test_head_filter_reaches_a_steady_turn_and_clamps_its_acceleration():
         # the closed form of the low pass: w_k = rate (1 - (1 - beta)^k)
         assert np.allclose(kin[1], rate * (1.0 - (1.0 - beta) ** (k + 1)), atol=1e-9)
         assert np.allclose(kin[3], (kin[1] - w) / h)
+        assert np.allclose(kin[4], rate, atol=1e-9)             # the turn itself, unfiltered
         v, w, R = kin[0], kin[1], R_new
     kin, moved = filter_head_motion((p + 0.01, R), (p, R, v, w), beta, h, (5.0, 7.0))
     assert abs(np.linalg.norm(kin[2]) - 5.0) < 1e-9             # 2.4 m/s in one step: clamped
