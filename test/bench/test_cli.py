@@ -5,6 +5,7 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 BENCH = os.path.join(os.path.dirname(sys.executable), 'hair_sim_bench')
@@ -98,3 +99,40 @@ def test_settle_quick(tmp_path):
         assert row['not_asleep'] == sum(r['slept_after_s'] is None for r in cell)
     broken = any(row['promised'] and row['not_asleep'] for row in rows)
     assert rc == (1 if broken else 0)
+
+
+def test_settle_samples_the_motion_at_a_phase_per_seed(monkeypatch):
+    """
+    Every seed of a style, step and wind starts the violent motion at its own phase.
+
+    In still air the turbulence seed picks nothing, and the four still-air runs of a style
+    and step were one run four times; each now advances the motion by its own phase, and
+    run_one's motion and hold pose are that phase's.
+    """
+    from hair_sim.bench import scenarios, settle
+    calls = []
+    monkeypatch.setattr(settle, 'run_one', lambda *args: calls.append(args) or {
+        'style': args[0].name, 'model': args[1], 'dt': args[2], 'promised': True,
+        'slept_after_s': 1.0, 'last_step_max_move_m': 0.0})
+    settle.run(quick=False, model='articulated')
+    still = {}
+    for style, model, dt, wind, seed, phase in calls:
+        if wind == 0.0:
+            still.setdefault((style.name, dt), []).append(phase)
+    assert still and all(len(set(p)) == len(settle.SEEDS) for p in still.values())
+    # the phase reaches the head: one step of run_one's motion is violent(t + phase)
+    monkeypatch.undo()
+    seen = []
+
+    class Probe(settle.HairSimulator):
+        def set_head_pose(self, t, p, q):
+            seen.append((t, np.asarray(p).copy()))
+            raise settle.SimulationDiverged('stop after one pose')
+    monkeypatch.setattr(settle, 'HairSimulator', Probe)
+    from hair_sim import load_hairstyle, paths
+    style = load_hairstyle(paths.shipped_style('bob_fringe'))
+    record = settle.run_one(style, 'articulated', 1.0 / 60, 0.0, 3, 0.89)
+    assert record['phase_s'] == 0.89 and record['diverged']
+    t, p = seen[0]
+    np.testing.assert_allclose(p, scenarios.violent(t + 0.89)[0])
+    assert not np.allclose(p, scenarios.violent(t)[0])
