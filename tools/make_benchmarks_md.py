@@ -17,6 +17,7 @@ import sys
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BENCH = os.path.join(ROOT, 'doc', 'bench')
 sys.path.insert(0, ROOT)
+from hair_sim.bench.settle import PHASES  # noqa: E402  (the phases the text states)
 from hair_sim.render.culling import PROOF_REST  # noqa: E402  (the rule the text states)
 
 
@@ -431,7 +432,8 @@ def settle_section(by_model):
     """Return the lines of the settle tables, one per model ({model: settle JSON})."""
     out = ['## Every style at every step comes to rest (`hair_sim_bench settle --json`)', '',
            'Per shipped style and step: 2 s of the stress bench\'s violent head motion in a '
-           'wind of 0, 10 or 30 m/s (turbulence 1, seeds 1-4), then no wind and the head '
+           'wind of 0, 10 or 30 m/s (turbulence 1, seeds 1-4, each seed also starting the '
+           'motion at its own phase: %s s), then no wind and the head '
            'still; "not asleep" counts the runs whose hair was not asleep 8 s later, and the '
            'last column is the largest vertex move in the last step of those (a strand '
            'still swinging). Promised: the model\'s stability check accepts the step (the '
@@ -443,7 +445,9 @@ def settle_section(by_model):
            'side_swept_long 1). With the code of 7a99732 (before eq. 7 counted the hinge '
            'springs and the springs of 5.2 in what the surface bears): the thesis model '
            'left 15 of 144 runs awake, all side_swept_long (12, 2 and 1 at 1/60, 1/120 and '
-           '1/240 s).', '']
+           '1/240 s). Until d00ef22 every seed started the motion at the same instant, so '
+           'the four still-air runs of a style and step were one run four times (48 of '
+           'the 144).' % ', '.join('%g' % p for p in PHASES), '']
     for model, result in by_model.items():
         rows = result['summary']
         for r in rows:
