@@ -666,10 +666,6 @@ def _nodding_chain_tips(dt, root_stiffness_scale, amplitude=0.6, frequency=1.5):
     return pos[:, 0, -1] - root, ref(times)[:, -1]
 
 
-def _rms(a, b):
-    return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=-1))))
-
-
 @pytest.mark.parametrize('root_stiffness_scale', [1.0, 1e3])
 def test_a_chain_on_a_nodding_head_follows_the_lagrangian_of_its_base_motion(
         root_stiffness_scale):
@@ -685,10 +681,10 @@ def test_a_chain_on_a_nodding_head_follows_the_lagrangian_of_its_base_motion(
     3.1 mm at 1/60 s). The nod moves the exact tips by over 2 cm (asserted).
     """
     tips, exact = _nodding_chain_tips(DEFAULT_DT, root_stiffness_scale)
-    at_default = _rms(tips, exact)
+    at_default = hanging.rms(tips, exact)
     assert at_default < 1e-3, at_default
     fine, exact_fine = _nodding_chain_tips(1.0 / 1000, root_stiffness_scale)
-    assert _rms(fine, exact_fine) < 0.4 * at_default
+    assert hanging.rms(fine, exact_fine) < 0.4 * at_default
     assert np.linalg.norm(exact - [0.0, 0.0, -0.3], axis=1).max() > 0.02
 
 
