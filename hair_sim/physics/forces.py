@@ -429,7 +429,8 @@ def reaction_constraint_forces(strands,
                                record_contacts,
                                forces,
                                hinge=None,
-                               moving=None):
+                               moving=None,
+                               drop_input=True):
     """
     Collision response by reaction constraints (eqs. 7-10) for vertices and segments.
 
@@ -461,6 +462,15 @@ def reaction_constraint_forces(strands,
 
     moving (n_strands,), if given, is each strand's step: a strand whose step is 0 waits
     and is left as it is (forces and record).
+
+    drop_input False is for a model that makes the surface bear what presses on it by its
+    own contact impulses (the articulated chain: ArticulatedSolver.drops_inward_input):
+    no share of the input force is dropped (eq. 7, and eq. 10's at Q), only eq. 8's
+    penalty and damping are added, and the load recorded is the penalty's. The share
+    eq. 7 drops is ramped over CONTACT_SKIN by distance, and for the chain it did not
+    count the joint springs (they are not input forces): a strand hanging with its tip
+    inside the skin had part of gravity's pull dropped while its sag-free springs went
+    on lifting, and swung 0.6-1.1 mm for ever (thesis_long after violent motion).
     """
     pos, vel, length = strands.pos, strands.vel, strands.length
     spheres, sphere_vel, masks = bodies.spheres, bodies.sphere_vel, bodies.masks
@@ -502,8 +512,11 @@ def reaction_constraint_forces(strands,
                         pressing = -min(0.0, (0.5 * f_dist[s, i, 0] + f_end[s, i, 0] + sx) * nx
                                         + (0.5 * f_dist[s, i, 1] + f_end[s, i, 1] + sy) * ny
                                         + (0.5 * f_dist[s, i, 2] + f_end[s, i, 2] + sz) * nz)
-                    load_mid = _remove_inward(f_dist[s, i], nx, ny, nz, w)
-                    load = _remove_inward(f_end[s, i], nx, ny, nz, w) + k * max(r - d, 0.0)
+                    load_mid = load = 0.0
+                    if drop_input:
+                        load_mid = _remove_inward(f_dist[s, i], nx, ny, nz, w)
+                        load = _remove_inward(f_end[s, i], nx, ny, nz, w)
+                    load += k * max(r - d, 0.0)
                     if hinge is not None:
                         # eq. 7 bears at most that: the rest of what it dropped is put back
                         excess = 0.5 * load_mid + load - k * max(r - d, 0.0) - pressing
@@ -546,7 +559,7 @@ def reaction_constraint_forces(strands,
                 vy = (1 - tt) * vel[s, i, 1] + tt * vel[s, i + 1, 1] - sphere_vel[kk, 1]
                 vz = (1 - tt) * vel[s, i, 2] + tt * vel[s, i + 1, 2] - sphere_vel[kk, 2]
                 w = _contact_weight(dq, r)
-                borne = -w * min(fn, 0.0)
+                borne = -w * min(fn, 0.0) if drop_input else 0.0
                 if hinge is not None:
                     # at most what the input force and the hinge spring press on the
                     # surface with together (see above); the spring's force at Q has its

@@ -723,6 +723,7 @@ class HairSimulator:
                 forces,
                 self.solver.contact_hinge(head),
                 strand_h,
+                self.solver.drops_inward_input,
             )
             c['kernel_calls'] += 1
         if not self.solver.springs_before_contacts:

@@ -151,6 +151,17 @@ CONTACT_DAMPING_RATE = 200.0
 # IMPULSE_SWEEPS times; the same for the contacts before the drift (_speculative_contacts).
 IMPULSE_SWEEPS = 32
 IMPULSE_TOLERANCE = 1e-7
+# Eq. 7 for the chain: the surface bears what presses on it, and no more. The contact
+# impulses above do that exactly, through the articulated inertias, for every force that
+# presses (gravity, wind, the inter-strip springs and the joint springs alike), so no share
+# of the input force is dropped before them (forces.reaction_constraint_forces' drop_input).
+# The thesis model's share is ramped over the 1 mm contact skin by distance and counts only
+# the input forces; the chain's joint springs are not among them. A strand pair of
+# thesis_long, hanging after violent motion with its tips 0.7-1.2 mm off a body sphere,
+# had part of gravity's pull dropped while its sag-free springs went on lifting, and swung
+# 0.6-1.1 mm at 2.9 Hz for ever (1/60 and 1/240 s, at two of seven stops of the motion);
+# without the share it sleeps 6.3-6.9 s after the stop.
+DROPS_INWARD_INPUT = False
 # The guard's chord allowance (forces.guard_segment): a segment whose inner point dips into
 # a sphere deeper than SEGMENT_TOLERANCE plus the sag of a chord resting on it is turned
 # out. The thesis model fades that sag over the 1 mm contact skin with the start's height;
@@ -1288,7 +1299,8 @@ def chain_step(state,
                                                    True,
                                                    forces,
                                                    None,
-                                                   strand_h)
+                                                   strand_h,
+                                                   DROPS_INWARD_INPUT)
         if settings.inter_strip and springs[0].pairs.shape[0] > 0:
             walls += strip_springs(at_mid, bodies.spheres[:settings.n_scalp], springs[0],
                                    springs[1], forces)
@@ -1514,6 +1526,7 @@ class ArticulatedSolver:
     fused = False                # (not one call per substep: see whole_step)
     whole_step = True            # all of a step's substeps in one call (chain_step)
     springs_before_contacts = False  # contacts first (the chain takes them implicitly)
+    drops_inward_input = DROPS_INWARD_INPUT  # the contact impulses bear what presses
 
     def __init__(self, sim):
         n_s, n_seg = sim.length.shape
