@@ -835,6 +835,34 @@ def test_shipped_styles_sleep_soon_after_violent_motion(style_name):
     assert sim.sleeping, 'still moving 4 s after the head stopped'
 
 
+def test_a_strand_pair_hanging_in_the_contact_skin_comes_to_rest():
+    """
+    thesis_long, the violent motion stopped at its 0.89 s phase, 1/60 s: asleep in 8 s.
+
+    The settle bench's run (its phase and window). Two strands joined by inter-strip
+    springs came to hang with their tips 0.7-1.2 mm off a body sphere, inside the contact
+    skin, where eq. 7 dropped a distance-ramped share of gravity's inward pull while the
+    sag-free joint springs (not input forces) went on lifting: they swung 1.1 mm at 2.9 Hz
+    for ever. With the contact impulses bearing what presses (DROPS_INWARD_INPUT) they
+    sleep 6.3 s after the stop.
+    """
+    from hair_sim.bench.scenarios import drive, violent
+    from hair_sim.bench.settle import MOTION_S, PHASES, WINDOW_S
+    sim = HairSimulator(load_hairstyle(paths.shipped_style('thesis_long')), model='articulated')
+    h = 1.0 / 60
+
+    def motion(t):
+        return violent(t + PHASES[2])
+    t = drive(sim, motion, 0.0, MOTION_S, h)
+    hold = motion(t)
+    for i in range(int(round(WINDOW_S / h))):
+        if sim.sleeping:
+            break
+        sim.set_head_pose(t + (i + 1) * h, *hold)
+        sim.step(h)
+    assert sim.sleeping, 'still moving %.0f s after the head stopped' % WINDOW_S
+
+
 @pytest.mark.parametrize('dt', [1.0 / 240, 1.0 / 60])
 def test_random_head_motion_leaves_no_limit_cycle(dt):
     """

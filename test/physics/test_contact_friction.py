@@ -72,12 +72,25 @@ def test_a_rod_on_an_incline_slides_as_coulomb_friction_says(beta_deg, mu, n_seg
 @pytest.mark.parametrize('beta_deg, mu, n_segments', [(20.0, 0.37, 5), (20.0, 0.5, 3),
                                                       (35.0, 0.75, 8)])
 def test_a_rod_on_an_incline_inside_the_friction_cone_stays(beta_deg, mu, n_segments):
-    """With mu above tan(beta) static friction holds the rod: it moves by less than 1 um."""
-    sim = rod_on_an_incline(math.radians(beta_deg), mu, n_segments)
+    """
+    With mu above tan(beta) static friction holds the rod: it slides by less than 1 um.
+
+    The rod starts straight, 2 um above the 1 km sphere at its root and so 7 um above it
+    at its far end; it settles onto the surface (along the normal) and rests there, each
+    vertex within 2.5 um of it, while no point slides along the surface by 1 um.
+    """
+    beta = math.radians(beta_deg)
+    normal = np.array([math.sin(beta), 0.0, math.cos(beta)])
+    sim = rod_on_an_incline(beta, mu, n_segments)
     start = sim.pos.copy()
     for _ in range(60):
         sim.step(1 / 60)
-    assert np.abs(sim.pos - start).max() < 1e-6
+    moved = sim.pos - start
+    slide = moved - (moved @ normal)[..., None] * normal     # in the tangent plane
+    assert np.linalg.norm(slide, axis=-1).max() < 1e-6
+    centre = -1000.0 * normal
+    height = np.linalg.norm(sim.pos - centre, axis=-1) - 1000.0
+    assert np.all(np.abs(height) < 2.5e-6)
 
 
 def test_hanging_strands_come_to_rest_on_the_head_without_the_guard():
@@ -140,7 +153,11 @@ def test_strands_lying_over_a_ball_come_to_rest_without_the_guard(mu, tilt):
     thesis model's allowance (fading with the start's height over the contact skin) the
     guard turned resting segments out every step (a lifted end shrinks the next
     segment's allowance) and gravity pulled them back: the strands slid on, awake, with
-    the guard acting at every step of the fifth second.
+    the guard acting at every step of the fifth second. Since the contact impulses bear
+    what presses (articulated.DROPS_INWARD_INPUT) resting vertices sit about 1 um up, not
+    hovering in the skin, and that control is weaker: in the second second it still turns
+    11-12 segments out a step and is awake, then sleeps at 2.3 s (mu 0.3) or not within
+    10 s (mu 0.5).
     """
     sim = strands_over_a_ball(mu, tilt)
     for _ in range(120):
@@ -154,7 +171,7 @@ def test_strands_lying_over_a_ball_come_to_rest_without_the_guard(mu, tilt):
     assert sim.counters['guard_moves'] - moves <= 5
     ratchet = strands_over_a_ball(mu, tilt)
     ratchet.solver.sag_by_height = False
-    for _ in range(240):
+    for _ in range(60):
         ratchet.step(1 / 60)
     moves = ratchet.counters['guard_moves']
     for _ in range(60):

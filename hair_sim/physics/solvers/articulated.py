@@ -175,7 +175,11 @@ DROPS_INWARD_INPUT = False
 # hair slept only 5.65 s after the wind stopped. Here the sag fades mm for mm with the
 # height of the segment's lower end, so a resting chord is left alone (a flying segment
 # still gets SEGMENT_TOLERANCE): the same run sleeps after 3.4 s (frictionless, 8.2 s:
-# strands slide back round the head).
+# strands slide back round the head). Since the contact impulses bear what presses
+# (DROPS_INWARD_INPUT) resting vertices sit about 1 um up instead of hovering in the skin,
+# which weakens that ratchet but does not end it: with the old allowance, 6 strands let
+# fall over a ball (test_contact_friction) had the guard turn 11-12 segments out a step
+# for their second second, and with contact_friction 0.5 never slept within 10 s.
 SAG_BY_HEIGHT = True
 
 # air: the rate (1/s) of the drag -air m v on every segment's centre that the shared forces
