@@ -212,8 +212,10 @@ def hanging_section(rows):
             'decided by rounding: a solver that takes another path (another step, another '
             'substep count) can put a few of them elsewhere on the sphere, which the RMS '
             'feels and the median does not '
-            + '(50 x 20 against MuJoCo in this run: %s; at 1/240 s strands 0, 4, 5 and 10, '
-            'rooted nearest the pole, end 13-55 mm off). ' % finer
+            + '(50 x 20 against MuJoCo in this run: %s; at 1/240 s twelve of the 26 strands '
+            'rooted on the upper half, from strand 2 by the pole to 25, end 5-20 mm off, '
+            'the rest within 5 mm; before the contact impulses bore what presses, 2026-11-27,'
+            ' strands 0, 4, 5 and 10 ended 13-55 mm off and 10.2 mm RMS). ' % finer
             + 'The articulated model splits a frame into substeps so that no segment turns '
             'more than 0.05 rad in one. '
             'Strands with no springs between them, as here, each take their own count (a '
@@ -295,7 +297,7 @@ def flex_times(cost, solver='mujoco flex'):
 def flex_speed(cost):
     """Return the sentence on the flexes' cost against the articulated model's."""
     return 'At one step per 60 Hz frame they cost %s.' % '; '.join(
-        '%.1f s/s at %d x 20, %.0f times the articulated model' % (flex, n, times) if flex
+        '%.1f s/s at %d x 20, %.1f times the articulated model' % (flex, n, times) if flex
         else 'at %d x 20 MuJoCo failed (see the JSON)' % n
         for n, flex, times in flex_times(cost))
 
@@ -322,7 +324,7 @@ def flex_error_ratio(accuracy, at_frame):
 def speed_target(cost, accuracy, at_frame, tip_z):
     """Return the sentence on the issue's speed target (20 times under MuJoCo, same run)."""
     flex = flex_times(cost)
-    times = ['%.0f times at %d x 20' % (t, n) for n, c, t in flex if c]
+    times = ['%.1f times at %d x 20' % (t, n) for n, c, t in flex if c]
     return ("The issue's speed target is 20 times under MuJoCo measured in the same run, at "
             'equal or better tip error: against the flexes, whose tips end %.1f-%.1f times '
             'as far from the references at every step (against the articulated model at '
@@ -447,7 +449,11 @@ def settle_section(by_model):
            'left 15 of 144 runs awake, all side_swept_long (12, 2 and 1 at 1/60, 1/120 and '
            '1/240 s). Until d00ef22 every seed started the motion at the same instant, so '
            'the four still-air runs of a style and step were one run four times (48 of '
-           'the 144).' % ', '.join('%g' % p for p in PHASES), '']
+           'the 144). With the code of 1506b2e (before the chain\'s contact impulses bore '
+           'what presses, with no share of the input force dropped by eq. 7): the '
+           'articulated model left 15 of 144 runs awake, all thesis_long, 4 of them in '
+           'still air (a strand pair swinging in the contact skin for ever).'
+           % ', '.join('%g' % p for p in PHASES), '']
     for model, result in by_model.items():
         rows = result['summary']
         for r in rows:

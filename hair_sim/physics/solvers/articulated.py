@@ -747,8 +747,9 @@ def _speculative_contacts(s,
     may approach by at most its gap (less GUARD_LIFT) in the step, v_n >= -gap / h, and
     never move inwards once inside. Its sliding relative to the head's surface is opposed
     by a tangential impulse of at most friction times its normal impulse: this step's
-    normal impulse plus h times the load the surface already bears there (eq. 7's dropped
-    force and the penalty of eq. 8, from the contact record). The impulses, accumulated,
+    normal impulse plus h times the load the surface already bears there (the penalty of
+    eq. 8, from the contact record; no share of the input force is dropped for this model,
+    DROPS_INWARD_INPUT, so the normal impulse carries what presses). The impulses, accumulated,
     the normal ones never pulling, are mended over the strand's contacts until none
     changes a velocity by more than IMPULSE_TOLERANCE (projected Gauss-Seidel through the
     articulated inertias of this step), and go into alpha. chain is (R, omega, length),
@@ -780,7 +781,8 @@ def _speculative_contacts(s,
                 continue
             nx, ny, nz = ex / dist, ey / dist, ez / dist
             # the point itself; and the segment's middle, where eq. 7's dropped
-            # distributed force was borne (friction only)
+            # distributed force was borne (friction only; none when DROPS_INWARD_INPUT
+            # is False)
             for mid in range(2):
                 load = contact[s, i, slot + (CONTACT_LOAD_MID if mid else CONTACT_LOAD)]
                 if mid and (load <= 0.0 or friction <= 0.0):
