@@ -11,6 +11,7 @@ from hair_sim.physics.simulator import HairSimulator
 
 GRAVITY = 9.81
 LENGTH = 0.1
+INCLINE_RADIUS = 1000.0       # m: the sphere whose surface near the origin is the incline
 
 
 def rod_on_an_incline(beta, mu, n_segments):
@@ -23,8 +24,8 @@ def rod_on_an_incline(beta, mu, n_segments):
     stiff enough that it turns as one rod; no damping, drag or inter-strip springs.
     """
     normal = np.array([math.sin(beta), 0.0, math.cos(beta)])
-    big = 1000.0
-    head = HeadModel(name='incline', frame_id='head', scalp=np.array([[*(-big * normal), big]]),
+    head = HeadModel(name='incline', frame_id='head',
+                     scalp=np.array([[*(-INCLINE_RADIUS * normal), INCLINE_RADIUS]]),
                      body=np.zeros((0, 4)), projection_sphere=np.array([0.0, 0.0, -1.0, 0.05]),
                      hairline={'front_x': 1.0, 'front_z': -1.0, 'back_x': -1.0, 'back_z': -1.0})
     along = np.linspace(0.0, LENGTH, n_segments + 1)
@@ -88,8 +89,8 @@ def test_a_rod_on_an_incline_inside_the_friction_cone_stays(beta_deg, mu, n_segm
     moved = sim.pos - start
     slide = moved - (moved @ normal)[..., None] * normal     # in the tangent plane
     assert np.linalg.norm(slide, axis=-1).max() < 1e-6
-    centre = -1000.0 * normal
-    height = np.linalg.norm(sim.pos - centre, axis=-1) - 1000.0
+    centre = -INCLINE_RADIUS * normal
+    height = np.linalg.norm(sim.pos - centre, axis=-1) - INCLINE_RADIUS
     assert np.all(np.abs(height) < 2.5e-6)
 
 
