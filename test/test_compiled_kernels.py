@@ -1,4 +1,9 @@
 """
+Every kernel compiled afresh: what each looks like, and what `make setup`'s warm-up caches.
+
+Two processes compile the whole package from an empty numba cache each, side by side
+(CI has two cores, and each takes a minute): the scan below, and the warm-up.
+
 What every compiled kernel looks like: its arguments bundled, and no reference counting.
 
 Kernels bundle their state and parameters (namedtuples or tuples of arrays) and list one
@@ -17,6 +22,8 @@ import subprocess
 import sys
 
 import pytest
+
+BIN = os.path.dirname(sys.executable)
 
 MAX_UNBUNDLED = 8
 
@@ -60,11 +67,40 @@ ALLOCATING = {'shadow_cones', 'culled_triangles', 'filter_head_motion', 'rotatio
 
 
 @pytest.fixture(scope='module')
-def compiled(tmp_path_factory):
+def fresh_compiles(tmp_path_factory):
+    """
+    Return the scan's and the warm-up's (returncode, stdout, stderr, cache directory).
+
+    Each in a numba cache directory of its own, empty; both run at once.
+    """
+    runs = {}
+    for name, args, extra in (('scan', ['-c', SCAN], {}),
+                              ('warmup', ['-m', 'hair_sim.warmup'], {'NUMBA_DEBUG_CACHE': '1'})):
+        where = tmp_path_factory.mktemp(name)
+        env = dict(os.environ, NUMBA_CACHE_DIR=str(where / 'numba'), **extra)
+        # output to files, not pipes: a full pipe would hold one up while the other is read
+        with open(where / 'out', 'w') as out, open(where / 'err', 'w') as err:
+            runs[name] = (subprocess.Popen([sys.executable] + args, env=env, stdout=out,
+                                           stderr=err), where)
+    results = {}
+    try:
+        for name, (proc, where) in runs.items():
+            proc.wait(timeout=900)
+            results[name] = (proc.returncode, (where / 'out').read_text(),
+                             (where / 'err').read_text(), where / 'numba')
+    finally:
+        for proc, _ in runs.values():
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    return results
+
+
+@pytest.fixture(scope='module')
+def compiled(fresh_compiles):
     """Return (name, unbundled arguments, signature, reference-count calls) per signature."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path_factory.mktemp('numba')))
-    out = subprocess.run([sys.executable, '-c', SCAN], env=env, capture_output=True,
-                         text=True, timeout=600, check=True).stdout
+    code, out, err, _ = fresh_compiles['scan']
+    assert code == 0, out[-2000:] + err[-2000:]
     return json.loads(out.strip().splitlines()[-1])
 
 
@@ -99,3 +135,35 @@ def test_no_kernel_but_the_allocating_ones_counts_references(compiled):
     assert not counting, counting
     # and the check can fail: the allocating kernels do count
     assert any(row[3] for row in compiled if row[0] in ALLOCATING)
+
+
+def _cache_log(output):
+    """Return the numba cache log's (saved, loaded) data lines."""
+    lines = [line for line in output.splitlines() if line.startswith('[cache] data')]
+    return ([line for line in lines if 'data saved' in line],
+            [line for line in lines if 'data loaded' in line])
+
+
+def test_after_the_warmup_the_demo_compiles_no_kernel(fresh_compiles):
+    """
+    The warm-up fills an empty cache; the demo's node then only loads from it.
+
+    numba compiles at a kernel's first call; a fresh install's first `make demo` stalled
+    for 10 s compiling. The warm-up (python -m hair_sim.warmup) drives the node's callbacks
+    for both strand models so that numba's on-disk cache holds them. Checked with numba's
+    cache log: the warm-up saves kernels, then the demo run as `make demo` runs it loads
+    them and saves none (a kernel the warm-up missed would be compiled and saved there).
+    """
+    code, out, err, cache = fresh_compiles['warmup']
+    assert code == 0, out[-2000:] + err[-2000:]
+    assert 'compiled and cached' in out
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), NUMBA_DEBUG_CACHE='1')
+    saved, _ = _cache_log(out + err)
+    assert len(saved) > 20, 'the warm-up compiled almost nothing: %d kernels' % len(saved)
+    demo = subprocess.run([os.path.join(BIN, 'hair_sim_demo'), '--duration', '4',
+                           '--no-meshcat'], env=env, capture_output=True, text=True,
+                          timeout=120)
+    assert demo.returncode == 0, demo.stdout[-2000:] + demo.stderr[-2000:]
+    saved, loaded = _cache_log(demo.stdout + demo.stderr)
+    assert loaded, 'the demo loaded no kernel from the cache'
+    assert not saved, 'the demo compiled kernels the warm-up did not:\n' + '\n'.join(saved)
