@@ -47,13 +47,20 @@ between joints are pure translations along the rods):
   and a clamped follicle snapped onto it and back until the step diverged;
 - the drift on SO(3): R <- Exp(h omega) R, in two parts around the kick (below).
 
-The spring is taken as -k (e + GAMMA h (omega_rel+ - delta omega_rel)): for a linear spring
-with symplectic Euler the step's determinant is (1 + delta b) / (1 + GAMMA b), b = h^2 k / I,
-and it is stable for any stiffness when GAMMA >= 1/4 and the base is still. A stiff root
-joint driven by a turning head still grew at GAMMA = 0.3 (measured at 1/60 s); 0.5 holds.
-delta = GAMMA (1 - UNRESOLVED_DAMPING (b / (1 + b))^4): modes the step resolves (b << 1)
-keep their energy (tested), while modes it cannot resolve (b >> 1) lose about half of it
-every step instead of ringing on.
+The spring is taken at its deviation predicted GAMMA h ahead, -k (e + GAMMA h omega_rel+),
+less a damping of the modes the step cannot resolve, -k GAMMA UNRESOLVED_DAMPING (b / (1 +
+b))^4 h omega_rel, b = h^2 k / I: modes the step resolves (b << 1) keep their energy
+(tested), while modes it cannot resolve (b >> 1) lose most of it every step instead of
+ringing on. For a linear spring taking its force at the start (symplectic Euler) the step's
+determinant is then 1 / (1 + (GAMMA + GAMMA UNRESOLVED_DAMPING (b / (1 + b))^4) b): stable
+for any stiffness, also when the step's length changes from one step to the next, as the
+substep count does with the swing (tested). The drift before the kick supplies theta h
+omega_rel of the prediction, the spring's torque the rest. Taken as -k (e + GAMMA h
+(omega_rel+ - omega_rel)) instead (as it was until 2026-11), a stiff joint carried a
+velocity of order e / h into the next step, which a change of the step's length amplified:
+alternating 1 and 2 substeps at 1/60 s diverged in 0.3 s, and in the hanging scene the
+counts' own switching kept 20 of 50 strands moving 4-7 mm a second for ever. A stiff root
+joint driven by a turning head grew at GAMMA = 0.3 (measured at 1/60 s); 0.5 holds.
 
 The step is Stormer-Verlet in position form: part of the drift, the articulated-body pass
 at the mid-step configuration, a kick, the rest of the drift (second order; the energy of
@@ -1067,10 +1074,18 @@ def step_chains(state,
             bt = h * h * k / ia
             dp = GAMMA * UNRESOLVED_DAMPING * (bs / (1.0 + bs)) ** 4 * h * k
             dt_ = GAMMA * UNRESOLVED_DAMPING * (bt / (1.0 + bt)) ** 4 * h * k
-            rd = (rwx * dx + rwy * dy + rwz * dz) * (dt_ - dp)
-            tqx = -k * (Ri[0] * e[0] + Ri[1] * e[1] + Ri[2] * e[2]) - (dd + dp) * rwx - rd * dx
-            tqy = -k * (Ri[3] * e[0] + Ri[4] * e[1] + Ri[5] * e[2]) - (dd + dp) * rwy - rd * dy
-            tqz = -k * (Ri[6] * e[0] + Ri[7] * e[1] + Ri[8] * e[2]) - (dd + dp) * rwz - rd * dz
+            # the spring at its deviation predicted GAMMA h ahead, -k (e + GAMMA h w_rel): the
+            # drift before the kick moved e by theta h of it, the rest is taken here (across
+            # the rod). Without it a stiff joint (theta -> 0) carried a velocity of order e / h
+            # into the next step, and a change of step length (the substep count) amplified
+            # it: alternating 1 and 2 substeps at 1/60 s diverged in 0.3 s, the count's own
+            # switching kept the hanging scene's strands shaking for ever (module text)
+            sp = (GAMMA - theta[i]) * h * k
+            da = dd + dp + sp                    # across the rod
+            rd = (rwx * dx + rwy * dy + rwz * dz) * (dt_ - dp - sp)
+            tqx = -k * (Ri[0] * e[0] + Ri[1] * e[1] + Ri[2] * e[2]) - da * rwx - rd * dx
+            tqy = -k * (Ri[3] * e[0] + Ri[4] * e[1] + Ri[5] * e[2]) - da * rwy - rd * dy
+            tqz = -k * (Ri[6] * e[0] + Ri[7] * e[1] + Ri[8] * e[2]) - da * rwz - rd * dz
             # the damping is implicit too: D gets h times the damping (anisotropic)
             cj = GAMMA * h * h * k + h * (dd + dp)
             ct = h * (dt_ - dp)
