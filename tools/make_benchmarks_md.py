@@ -212,10 +212,12 @@ def hanging_section(rows):
             'decided by rounding: a solver that takes another path (another step, another '
             'substep count) can put a few of them elsewhere on the sphere, which the RMS '
             'feels and the median does not '
-            + '(50 x 20 against MuJoCo in this run: %s; at 1/240 s twelve of the 26 strands '
-            'rooted on the upper half, from strand 2 by the pole to 25, end 5-20 mm off, '
-            'the rest within 5 mm; before the contact impulses bore what presses, 2026-11-27,'
-            ' strands 0, 4, 5 and 10 ended 13-55 mm off and 10.2 mm RMS). ' % finer
+            + '(50 x 20 against MuJoCo in this run: %s. Until the joint springs were taken '
+            "where they stay stable as the step's length changes, 2026-11-27, the substep "
+            "counts' own switching shook the strands lying on the head, and at 1/240 s "
+            'twelve of the 26 strands rooted on the upper half ended 5-20 mm off, 4.85 mm '
+            'RMS, and 1.1 mm at 1/120 s; before the contact impulses bore what presses, '
+            'strands 0, 4, 5 and 10 ended 13-55 mm off at 1/240 s, 10.2 mm RMS). ' % finer
             + 'The articulated model splits a frame into substeps so that no segment turns '
             'more than 0.05 rad in one. '
             'Strands with no springs between them, as here, each take their own count (a '
@@ -333,8 +335,11 @@ def speed_target(cost, accuracy, at_frame, tip_z):
             "0.045 and 0.9 s/s, came from the flexes as measured when the issue was filed "
             '(0.89 and 17.7 s/s; %s here, with their edges held by equality '
             'constraints so that they do not stretch as they fall%s): %.2f and %.2f s/s are '
-            'still over them, about 2.8 substeps a strand a frame over the 2 s fall (1 each '
-            'once the strands hang) at about 0.31 us per segment-substep, forces included.'
+            'still over them, about 2.3 substeps a strand a frame over the 2 s fall (1 each '
+            'once the strands hang; 2.8 before the joint springs were mended for a changing '
+            'step, when the counts\' own switching kept strands lying on the head moving) at '
+            'about 0.58 us per segment-substep, forces included (2026-11-27, /tmp script, on '
+            'its own on the machine).'
             % (flex_error_ratio(accuracy, at_frame)
                + (' and '.join(times),
                   cost[(200, 'mujoco')] / cost[(200, 'hair_sim articulated')],
@@ -452,7 +457,10 @@ def settle_section(by_model):
            'the 144). With the code of 1506b2e (before the chain\'s contact impulses bore '
            'what presses, with no share of the input force dropped by eq. 7): the '
            'articulated model left 15 of 144 runs awake, all thesis_long, 4 of them in '
-           'still air (a strand pair swinging in the contact skin for ever).'
+           'still air (a strand pair swinging in the contact skin for ever); after that and '
+           'before the joint springs were taken where a changing step length leaves them '
+           'stable (the same day), 8, none in still air: the same runs as now except '
+           'thesis_long at 1/120 s in the 30 m/s wind at the 1.21 s phase, which slept then.'
            % ', '.join('%g' % p for p in PHASES), '']
     for model, result in by_model.items():
         rows = result['summary']
