@@ -1074,12 +1074,9 @@ def step_chains(state,
             bt = h * h * k / ia
             dp = GAMMA * UNRESOLVED_DAMPING * (bs / (1.0 + bs)) ** 4 * h * k
             dt_ = GAMMA * UNRESOLVED_DAMPING * (bt / (1.0 + bt)) ** 4 * h * k
-            # the spring at its deviation predicted GAMMA h ahead, -k (e + GAMMA h w_rel): the
-            # drift before the kick moved e by theta h of it, the rest is taken here (across
-            # the rod). Without it a stiff joint (theta -> 0) carried a velocity of order e / h
-            # into the next step, and a change of step length (the substep count) amplified
-            # it: alternating 1 and 2 substeps at 1/60 s diverged in 0.3 s, the count's own
-            # switching kept the hanging scene's strands shaking for ever (module text)
+            # the spring at its deviation predicted GAMMA h ahead, -k (e + GAMMA h w_rel+):
+            # the drift before the kick supplied theta h w_rel of it, this the rest, across
+            # the rod (stable when the substep count changes: see the module text)
             sp = (GAMMA - theta[i]) * h * k
             da = dd + dp + sp                    # across the rod
             rd = (rwx * dx + rwy * dy + rwz * dz) * (dt_ - dp - sp)
