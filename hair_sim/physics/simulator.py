@@ -17,6 +17,7 @@ from hair_sim.modeling.head import MAX_SPHERES
 from hair_sim.modeling.strips import build_strips
 from hair_sim.physics import forces as F
 from hair_sim.physics.motion import filter_head_motion, HeadMotion, quat_to_matrix
+from hair_sim.physics.multirate import multirate_substep
 from hair_sim.physics.params import PhysicsParams
 from hair_sim.physics.solvers.anjyo import AnjyoSolver
 from hair_sim.physics.solvers.articulated import ArticulatedSolver
@@ -523,9 +524,10 @@ class HairSimulator:
         the stability). Strands on their own (no springs) each take their own count
         (multirate): the step runs as many substeps as the finest strand takes, and each
         strand moves at the substeps in which one of its own ends, by its own length
-        (waiting at the others), with the wind of its own substep's end, so a strand at
-        rest beside a whipping one takes the step whole, exactly as it would alone
-        (`shared` makes every strand take the largest). Returns each strand's count.
+        (waiting at the others; multirate.multirate_substep), with the wind of its own
+        substep's end, so a strand at rest beside a whipping one takes the step whole,
+        exactly as it would alone (`shared` makes every strand take the largest). Returns
+        each strand's count.
         """
         counts = np.maximum(self.solver.substeps_for(h), at_least)
         n = int(counts.max())
@@ -538,10 +540,9 @@ class HairSimulator:
             self._substep(t - h + h / n, h, whole, whole)
         else:
             own_h = h / counts
-            for k in range(n):                     # (as articulated.chain_step)
-                ended = (k + 1) * counts // n      # of each strand's own substeps
-                strand_h = np.where(ended > k * counts // n, own_h, 0.0)
-                strand_t = t - h + ended * h / counts
+            for k in range(n):                     # (the schedule chain_step runs too)
+                strand_h, strand_t = np.empty(len(counts)), np.empty(len(counts))
+                multirate_substep((float(t), h, n), k, counts, strand_h, strand_t)
                 self._substep(t - h + (k + 1) * h / n, h / n, strand_h, own_h, strand_t)
         self.counters['substeps'] += n
         self.counters['strand_substeps'] += int(counts.sum())

@@ -109,6 +109,7 @@ from hair_sim.physics.forces import (CONTACT_C, CONTACT_FIELDS, CONTACT_K, CONTA
                                      place_with_head, reaction_constraint_forces,
                                      Strands, strip_springs)
 from hair_sim.physics.compiled_call import CompiledCall
+from hair_sim.physics.multirate import multirate_substep
 
 # weight of the implicit spring increment: >= 1/4 is stable for a still base; a stiff root
 # joint driven by a turning head grew at 0.3 (measured, 1/60 s) and holds at 0.5
@@ -1276,11 +1277,11 @@ def chain_step(state,
     configuration x + (own h / 2) v, the springs of 5.2 after the contacts, and
     step_chains. step is (t at the step's end, h, n substeps, whether the forces are taken
     at mid-step (forces_at_mid_step) or at the start); counts[s] <= n, and strand s moves
-    by h / counts[s] at the substeps in which one of its own ends (multirate: substep k,
-    0-based, ends (k + 1) counts[s] // n of them), waiting at the others; strand_h and
-    strand_t are scratch (n_strands,): each strand's step and the end of its own substep
-    (the wind's time). springs is (StripSprings, SpringConstants). Returns (broad-phase
-    checks, contacts, wall springs, segments updated), summed over the substeps.
+    by h / counts[s] at the substeps in which one of its own ends, waiting at the others
+    (multirate_substep's schedule); strand_h and strand_t are scratch (n_strands,): each
+    strand's step and the end of its own substep (the wind's time). springs is
+    (StripSprings, SpringConstants). Returns (broad-phase checks, contacts, wall springs,
+    segments updated), summed over the substeps.
     """
     t_end, h, n, mid_step = step
     checks = place_with_head(head, attach, bodies, settings.collisions, settings.broad_phase)
@@ -1291,14 +1292,11 @@ def chain_step(state,
     contacts = walls = segments = 0
     for k in range(n):
         t = t_end - h + (k + 1) * h / n
+        multirate_substep((t_end, h, n), k, counts, strand_h, strand_t)
         for s in range(n_s):
-            own = h / counts[s]
-            ended = (k + 1) * counts[s] // n       # its own substeps ended by this one
-            strand_h[s] = own if ended > k * counts[s] // n else 0.0
-            strand_t[s] = t_end - h + ended * h / counts[s]
             if mid_step:
                 # each strand at the middle of its own substep (one waiting: of its next)
-                half = 0.5 * own
+                half = 0.5 * (h / counts[s])
                 for j in range(n_v):
                     for a in range(3):
                         pos_mid[s, j, a] = vel[s, j, a] * half + pos[s, j, a]
