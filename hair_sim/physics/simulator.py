@@ -490,10 +490,11 @@ class HairSimulator:
             raise SimulationDiverged(
                 'the %s model diverged at t = %.3f s (dt %.4g s); the hair was put back at '
                 'its rest shape under the current head' % (self.params.model, t, h))
+        self.solver.relax_material(h)           # (a material change under way: see there)
         # Settled: with steady inputs, no vertex has left a sleep_tolerance ball around where
         # it was when the quiet window began, for sleep_delay seconds. (A displacement
         # window, not a speed: contact can make a vertex tremble by the guard's 0.2 mm.)
-        inputs_steady = self.wind.steady and self._head_still()
+        inputs_steady = self.wind.steady and self._head_still() and not self.solver.blending
         if inputs_steady and self._quiet_ref is not None and \
                 np.abs(self.pos - self._quiet_ref).max() < self.params.sleep_tolerance:
             self._quiet += h

@@ -746,6 +746,7 @@ class AnjyoSolver:
     springs_before_contacts = True  # eq. 7 bears what the springs of 5.2 press with too
     uses_contacts = False        # the contact record (implicit contacts) is not read
     drops_inward_input = True    # eq. 7: the surface bears the inward input force
+    blending = False             # (a material change takes effect at once: relax_material)
     forces_at_mid_step = False   # eqs. 4-6 take the forces where the step starts
     contact_damping_rate = 0.0   # eq. 8's c is collision_damping alone (explicit)
 
@@ -798,6 +799,9 @@ class AnjyoSolver:
         v = (sim.pos - sim.pos_prev) / sim.last_dt
         vm = 0.5 * (v[:, 1:] + v[:, :-1])
         return float(0.5 * (sim.mass[..., None] * vm ** 2).sum())
+
+    def relax_material(self, h):
+        """Do nothing: the thesis model takes a material change at once."""
 
     def hold(self):
         """Forget the motion: the previous angles become the current ones (at rest)."""

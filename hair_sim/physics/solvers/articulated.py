@@ -144,6 +144,19 @@ STABILITY_CHUNK_BYTES = 16 << 20     # the stability check's Hessians, at most, 
 # and of a standing one stiffened to stand (STABILITY_MARGIN), decays at 2.3-2.6/s.
 JOINT_DAMPING_SHARE = 0.2
 AIR_DAMPING_SHARE = 1.0 / 3.0
+# s: a change of the material while the hair moves (set_params: stiffness, root stiffness,
+# mass, gravity) brings each joint's stiffness geometrically from the old to the new over
+# this long (smoothstep), while the preload torques k e0 that hold the style take their
+# new values at once (so the modeled pose stays the equilibrium throughout, and a change
+# of the load alone takes effect at once). Applied at once, a stiffened joint held away
+# from its rest by the motion got the energy k e^2 / 2 of its new stiffness in one step:
+# raising root_stiffness_scale to 1e4 or more mid-motion diverged the articulated model
+# every time (thesis_short, 1/60 and 1/240 s), and the hair was reset. Over 0.25 s, a
+# 100 times stiffer material set mid-motion flung the tips at 7.6 m/s, 2.6 times the
+# faster material's own peak under the same motion; over 1 s, 4.6 m/s (1.6 times).
+# (Keeping each joint's torque by its offset alone, at the new stiffness at once, was not
+# enough: a joint 1e4 times stiffer held at a 114 deg bend diverged at once.)
+MATERIAL_BLEND_S = 1.0
 # Contacts are implicit here, so they can stop a segment's motion into a sphere instead of
 # letting it bounce: their damping (eq. 8's c, per metre) gets this rate times the mass per
 # metre on top of collision_damping (200/s: +0.5 N s/m per m for the default material).
@@ -1560,10 +1573,63 @@ class ArticulatedSolver:
         self._strand_h = np.zeros(n_s)            # chain_step's per-substep steps
         self._strand_t = np.zeros(n_s)            # and the ends of the strands' own substeps
         self._step_call = CompiledCall(chain_step)
+        self.placed = False                       # (R holds no pose yet)
         self.update_material(sim)
 
     def update_material(self, sim):
-        """Recompute joint stiffness, damping, axial inertia and the sag-free offsets."""
+        """
+        Recompute joint stiffness, damping, axial inertia and the sag-free offsets.
+
+        Once the chain is placed (a change of the parameters), the joints' stiffness goes
+        from the old to the new over MATERIAL_BLEND_S (relax_material; `blending`
+        meanwhile), the offsets giving the new preload torques all along; the rest takes
+        effect at once.
+        """
+        before = (self.k, self.offset) if self.placed else None
+        self._material(sim)
+        self.k_target, self.offset_target = self.k, self.offset
+        self.blending = False
+        if before is None or (np.array_equal(before[0], self.k)
+                              and np.array_equal(before[1], self.offset)):
+            return
+        self._blend_from = before[0]
+        self._preload = self.k_target[..., None] * self.offset_target
+        self._blend_left = MATERIAL_BLEND_S
+        self.k, self.offset = before[0].copy(), np.zeros_like(self.offset_target)
+        self._offsets_from_preload()
+        self.blending = True
+
+    def relax_material(self, h):
+        """Take the joints' stiffness h seconds further to the new material's (smoothstep)."""
+        if not self.blending:
+            return
+        self._blend_left -= h
+        if self._blend_left <= 1e-9 * MATERIAL_BLEND_S:
+            self.k, self.offset = self.k_target, self.offset_target
+            self.blending = False
+            return
+        u = 1.0 - self._blend_left / MATERIAL_BLEND_S      # 0 -> 1
+        w = u * u * (3.0 - 2.0 * u)                          # smoothstep: no jolt at the ends
+        k_from, k_to = self._blend_from, self.k_target
+        both = (k_from > 0.0) & (k_to > 0.0)
+        ratio = np.divide(k_to, k_from, out=np.ones_like(k_to), where=both)
+        self.k[:] = np.where(both, k_from * ratio ** w, k_from + (k_to - k_from) * w)
+        self._offsets_from_preload()
+
+    def _offsets_from_preload(self):
+        """Set the offsets that give the new material's preload torques k e0 at today's k."""
+        np.divide(self._preload, self.k[..., None], out=self.offset,
+                  where=self.k[..., None] > 0.0)
+        self.offset[self.k <= 0.0] = 0.0
+
+    def _end_blend(self):
+        """Put the joints at the new material's stiffness and offsets at once (placed anew)."""
+        if self.blending:
+            self.k, self.offset = self.k_target, self.offset_target
+            self.blending = False
+
+    def _material(self, sim):
+        """Set k, d, the axial inertia, air, friction and the sag-free offsets (self.offset)."""
         p = sim.params
         k = p.bending_stiffness / sim.length
         k[:, 0] *= p.root_stiffness_scale
@@ -1613,6 +1679,8 @@ class ArticulatedSolver:
 
     def place(self, sim, world_dir):
         """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""
+        self.placed = True
+        self._end_blend()
         # from the modeled root frame under the head, so the root joint is not twisted (a
         # turn from the head's own axes would be ill-defined for a strand hanging down)
         first = sim.head_pose[0] @ self.modeled[:, 0]
@@ -1622,6 +1690,8 @@ class ArticulatedSolver:
 
     def place_at_rest(self, sim):
         """Put every segment at its modeled orientation under the current head."""
+        self.placed = True
+        self._end_blend()
         self.R[:] = sim.head_pose[0] @ self.modeled
         self.hold()
 
