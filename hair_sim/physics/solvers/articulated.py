@@ -212,8 +212,8 @@ ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', '
 ChainScratch = namedtuple('ChainScratch', ['Dinv', 'U_A', 'U_B', 'u', 'alpha', 'wm', 'theta',
                                            'guarded', 'g_nrm', 'u_imp', 'dw', 'rc_imp',
                                            'lam_imp', 'c_seg', 'c_lever', 'c_nrm', 'c_bound',
-                                           'c_load', 'c_lam', 'c_fric', 't_fric', 'c_dw',
-                                           'c_dvn'])
+                                           'c_load', 'c_lam', 'c_fric', 'c_dw',
+                                           'c_dvn', 'c_dwb', 'c_K'])
 
 
 # ------------------------------------------------------------------ 3x3 helpers
@@ -615,6 +615,42 @@ def _unit_impulse_response(s,
 
 
 @njit_without_refcounts
+def _point_responses(s, i, rc, chain, articulated, u, dwb, K):
+    """
+    Write a point's responses to unit impulses along x, y and z (segment i, at rc).
+
+    dwb[a] (n_seg, 3) the joints' angular velocity changes for an impulse along axis a
+    (_unit_impulse_response), K[a] the point's velocity change: the sum over the rods up
+    to i of their change crossed with the rod (dw x b), and rod i's crossed with rc.
+    """
+    R, length = chain
+    for a in range(3):
+        K[a, 0] = K[a, 1] = K[a, 2] = 0.0
+        K[a, a] = 1.0
+        _unit_impulse_response(s, i, (K[a], rc), chain, articulated, (u, dwb[a]))
+        lx = ly = lz = 0.0
+        for j in range(i):
+            bx, by, bz = length[s, j] * R[s, j, 0, 2], length[s, j] * R[s, j, 1, 2], \
+                length[s, j] * R[s, j, 2, 2]
+            wx, wy, wz = dwb[a, j, 0], dwb[a, j, 1], dwb[a, j, 2]
+            lx += wy * bz - wz * by
+            ly += wz * bx - wx * bz
+            lz += wx * by - wy * bx
+        wx, wy, wz = dwb[a, i, 0], dwb[a, i, 1], dwb[a, i, 2]
+        K[a, 0] = lx + wy * rc[2] - wz * rc[1]
+        K[a, 1] = ly + wz * rc[0] - wx * rc[2]
+        K[a, 2] = lz + wx * rc[1] - wy * rc[0]
+
+
+@njit_without_refcounts
+def _response_along(K, tx, ty, tz):
+    """Return t . (K t): the velocity change along the unit t per unit impulse along it."""
+    return (tx * (tx * K[0, 0] + ty * K[1, 0] + tz * K[2, 0])
+            + ty * (tx * K[0, 1] + ty * K[1, 1] + tz * K[2, 1])
+            + tz * (tx * K[0, 2] + ty * K[1, 2] + tz * K[2, 2]))
+
+
+@njit_without_refcounts
 def _without_relative_spin(w, parent_w, d):
     """
     Return angular velocity w less its spin about the rod axis d relative to parent_w.
@@ -774,14 +810,15 @@ def _speculative_contacts(s,
     the normal ones never pulling, are mended over the strand's contacts until none
     changes a velocity by more than IMPULSE_TOLERANCE (projected Gauss-Seidel through the
     articulated inertias of this step), and go into alpha. chain is (R, omega, length),
-    base the roots' (positions, velocities), scratch (u, dw, rc, a direction, and per
-    point: segments, levers, normals, bounds, loads, normal and friction impulses, normal
-    responses and their size along the normal). Returns the points held.
+    base the roots' (positions, velocities), scratch (u, dw, rc, and per point: segments,
+    levers, normals, bounds, loads, normal and friction impulses, normal responses and
+    their size along the normal, responses to impulses along x, y and z and the point's
+    velocity changes for them). Returns the points held.
     """
     R, omega, length = chain
     roots, root_vel = base
-    u, dw, rc, t3, c_seg, c_lever, c_nrm, c_bound, c_load, c_lam, c_fric, c_dw, c_dvn = \
-        scratch
+    (u, dw, rc, c_seg, c_lever, c_nrm, c_bound, c_load, c_lam, c_fric, c_dw, c_dvn, c_dwb,
+     c_K) = scratch
     n_seg = length.shape[1]
     n_c = 0
     jx, jy, jz = roots[s, 0], roots[s, 1], roots[s, 2]      # the joint of segment i
@@ -817,6 +854,7 @@ def _speculative_contacts(s,
                 c_load[n_c] = load
                 c_lam[n_c] = 0.0
                 c_dvn[n_c] = -1.0
+                c_K[n_c, 0, 0] = -1.0               # (its friction responses: not yet)
                 c_fric[n_c, 0] = c_fric[n_c, 1] = c_fric[n_c, 2] = 0.0
                 n_c += 1
         jx += seg * dx
@@ -857,19 +895,25 @@ def _speculative_contacts(s,
                     c_fric[c, 2] == 0.0:
                 continue
             # Coulomb: an impulse against the sliding, the one that stops it along its
-            # direction, added to this point's so far and kept within |impulse| <= cap
+            # direction, added to this point's so far and kept within |impulse| <= cap.
+            # The point's responses to impulses along x, y and z, worked out once a step,
+            # give the response along any direction (the chain's response is linear):
+            # two propagations a sweep saved
             vx, vy, vz = _point_velocity(s, i, lever, chain, base, head, alpha, h, rc)
+            if c_K[c, 0, 0] < 0.0:
+                _point_responses(s, i, rc, (R, length), articulated, u, c_dwb[c], c_K[c])
+            K = c_K[c]
             vn = vx * nrm[0] + vy * nrm[1] + vz * nrm[2]
             ux, uy, uz = vx - vn * nrm[0], vy - vn * nrm[1], vz - vn * nrm[2]
             slide = sqrt(ux * ux + uy * uy + uz * uz)
             wx, wy, wz = c_fric[c, 0], c_fric[c, 1], c_fric[c, 2]
             if slide > 1e-300:
-                t3[0], t3[1], t3[2] = ux / slide, uy / slide, uz / slide
-                d_t = _unit_impulse_response(s, i, (t3, rc), (R, length), articulated, (u, dw))
+                tx, ty, tz = ux / slide, uy / slide, uz / slide
+                d_t = _response_along(K, tx, ty, tz)
                 if d_t > 1e-300:
-                    wx -= slide / d_t * t3[0]
-                    wy -= slide / d_t * t3[1]
-                    wz -= slide / d_t * t3[2]
+                    wx -= slide / d_t * tx
+                    wy -= slide / d_t * ty
+                    wz -= slide / d_t * tz
             size = sqrt(wx * wx + wy * wy + wz * wz)
             if size > cap:
                 wx, wy, wz = wx * cap / size, wy * cap / size, wz * cap / size
@@ -878,12 +922,12 @@ def _speculative_contacts(s,
             if step <= 1e-300:
                 continue
             c_fric[c, 0], c_fric[c, 1], c_fric[c, 2] = wx, wy, wz
-            t3[0], t3[1], t3[2] = ex_ / step, ey_ / step, ez_ / step
-            d_e = _unit_impulse_response(s, i, (t3, rc), (R, length), articulated, (u, dw))
+            d_e = _response_along(K, ex_ / step, ey_ / step, ez_ / step)
+            dwb = c_dwb[c]
             for j in range(n_seg):
-                alpha[j, 0] += step * dw[j, 0] / h
-                alpha[j, 1] += step * dw[j, 1] / h
-                alpha[j, 2] += step * dw[j, 2] / h
+                for a in range(3):
+                    alpha[j, a] += (ex_ * dwb[0, j, a] + ey_ * dwb[1, j, a]
+                                    + ez_ * dwb[2, j, a]) / h
             largest = max(largest, abs(step * d_e))
         if largest <= IMPULSE_TOLERANCE:
             break
@@ -955,7 +999,8 @@ def step_chains(state,
     guarded, g_nrm, u_imp = sc.guarded, sc.g_nrm, sc.u_imp
     dw, rc_imp, lam_imp, c_seg, c_lever = sc.dw, sc.rc_imp, sc.lam_imp, sc.c_seg, sc.c_lever
     c_nrm, c_bound, c_load, c_lam = sc.c_nrm, sc.c_bound, sc.c_load, sc.c_lam
-    c_fric, t_fric, c_dw, c_dvn = sc.c_fric, sc.t_fric, sc.c_dw, sc.c_dvn
+    c_fric, c_dw, c_dvn = sc.c_fric, sc.c_dw, sc.c_dvn
+    c_dwb, c_K = sc.c_dwb, sc.c_K
     max_rate = 0.0
     guards = 0
     Rh = _load3(head.R)
@@ -1171,8 +1216,8 @@ def step_chains(state,
                                   head,
                                   spheres,
                                   (Dinv, U_A, U_B),
-                                  (u_imp, dw, rc_imp, t_fric, c_seg, c_lever, c_nrm, c_bound,
-                                   c_load, c_lam, c_fric, c_dw, c_dvn),
+                                  (u_imp, dw, rc_imp, c_seg, c_lever, c_nrm, c_bound,
+                                   c_load, c_lam, c_fric, c_dw, c_dvn, c_dwb, c_K),
                                   alpha,
                                   h,
                                   state.friction)
@@ -1533,9 +1578,10 @@ def chain_scratch(n_seg):
         c_load=np.zeros(n_c),
         c_lam=np.zeros(n_c),  # normal impulses
         c_fric=np.zeros((n_c, 3)),  # friction impulses
-        t_fric=np.zeros(3),
         c_dw=np.zeros((n_c, n_seg, 3)),  # their normal responses
         c_dvn=np.zeros(n_c),
+        c_dwb=np.zeros((n_c, 3, n_seg, 3)),  # their responses to impulses along x, y, z
+        c_K=np.zeros((n_c, 3, 3)),  # ... at the point (rows: x, y, z; K[c, 0, 0] < 0: none)
     )
 
 
