@@ -179,3 +179,44 @@ def test_strands_lying_over_a_ball_come_to_rest_without_the_guard(mu, tilt):
         ratchet.step(1 / 60)
     assert not ratchet.sleeping
     assert ratchet.counters['guard_moves'] - moves >= 60
+
+
+def test_a_points_responses_along_the_axes_give_its_response_along_any_direction():
+    """
+    The friction solve's shortcut (_point_responses, _response_along) against propagation.
+
+    For a point of a strand bent in 3D (after a step of violent motion, so the articulated
+    inertias hold springs, dampers and a turning head), an impulse along any unit direction
+    gives the velocity change along it and the joints' angular velocity changes that
+    _unit_impulse_response propagates for that direction itself, to rounding.
+    """
+    from hair_sim.bench.scenarios import violent
+    from hair_sim.physics.solvers.articulated import (
+        _point_responses, _response_along, _unit_impulse_response)
+    sim = HairSimulator.from_strands(rest_strands(1, 12), head_model(),
+                                     **dict(scene_params('articulated'), collisions=False,
+                                            root_stiffness_scale=1.0))
+    t = 0.0
+    for _ in range(20):
+        t += 1.0 / 60.0
+        sim.set_head_pose(t, *violent(t))
+        sim.step(1.0 / 60.0)
+    sc = sim.solver.scratch
+    chain = (sim.solver.R, sim.length)
+    articulated = (sc.Dinv, sc.U_A, sc.U_B)
+    n_seg = sim.length.shape[1]
+    rng = np.random.default_rng(3)
+    for i in (0, 5, n_seg - 1):
+        rc = sim.length[0, i] * 0.7 * sim.solver.R[0, i, :, 2] + rng.normal(0, 1e-3, 3)
+        dwb, K = np.zeros((3, n_seg, 3)), np.zeros((3, 3))
+        _point_responses(0, i, rc, chain, articulated, np.zeros((n_seg, 3)), dwb, K)
+        for _ in range(5):
+            d = rng.normal(size=3)
+            d /= np.linalg.norm(d)
+            dw = np.zeros((n_seg, 3))
+            direct = _unit_impulse_response(0, i, (d, rc), chain, articulated,
+                                            (np.zeros((n_seg, 3)), dw))
+            assert direct > 0.0
+            assert _response_along(K, *d) == pytest.approx(direct, rel=1e-12)
+            np.testing.assert_allclose(np.tensordot(d, dwb, axes=1), dw, rtol=0,
+                                       atol=1e-12 * np.abs(dw).max())
