@@ -541,8 +541,8 @@ class HairSimulator:
             self._substep(t - h + h / n, h, whole, whole)
         else:
             own_h = h / counts
+            strand_h, strand_t = np.empty(len(counts)), np.empty(len(counts))
             for k in range(n):                     # (the schedule chain_step runs too)
-                strand_h, strand_t = np.empty(len(counts)), np.empty(len(counts))
                 multirate_substep((float(t), h, n), k, counts, strand_h, strand_t)
                 self._substep(t - h + (k + 1) * h / n, h / n, strand_h, own_h, strand_t)
         self.counters['substeps'] += n

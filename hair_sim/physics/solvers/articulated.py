@@ -547,6 +547,23 @@ def _unit_impulse_response(s,
                            articulated,
                            scratch):
     """
+    Return the contact point's velocity change along nrm per unit impulse along nrm.
+
+    The projection of _unit_impulse_velocity (same arguments; it writes dw).
+    """
+    nrm = contact[0]
+    cx, cy, cz = _unit_impulse_velocity(s, i, contact, chain, articulated, scratch)
+    return cx * nrm[0] + cy * nrm[1] + cz * nrm[2]
+
+
+@njit_without_refcounts
+def _unit_impulse_velocity(s,
+                           i,
+                           contact,
+                           chain,
+                           articulated,
+                           scratch):
+    """
     Return the chain's response to a unit impulse along nrm at rc (from joint i), segment i.
 
     Featherstone's test-force propagation through the articulated inertias of this step
@@ -554,7 +571,7 @@ def _unit_impulse_response(s,
     impulse, p = -(rc x n, n), goes from joint i to the root, then accelerations come back
     out from the root to the tip. contact is (nrm, rc), chain (R, length), articulated
     (Dinv, U_A, U_B) of this step, scratch (u, dw). Writes the angular velocity changes dw
-    (n_seg, 3) and returns the contact point's velocity change along nrm per unit impulse.
+    (n_seg, 3) and returns the contact point's velocity change (x, y, z) per unit impulse.
     """
     nrm, rc = contact
     R, length = chain
@@ -589,6 +606,7 @@ def _unit_impulse_response(s,
         pa2 += ax * pl1 - ay * pl0
     al0 = al1 = al2 = 0.0                  # the head does not respond
     lx = ly = lz = 0.0
+    cx = cy = cz = 0.0
     for j in range(n_seg):
         if j > 0:
             lp = length[s, j - 1]
@@ -610,8 +628,7 @@ def _unit_impulse_response(s,
             cx = lx + al1 * rc[2] - al2 * rc[1]
             cy = ly + al2 * rc[0] - al0 * rc[2]
             cz = lz + al0 * rc[1] - al1 * rc[0]
-            dvn = cx * nrm[0] + cy * nrm[1] + cz * nrm[2]
-    return dvn
+    return cx, cy, cz
 
 
 @njit_without_refcounts
@@ -619,27 +636,15 @@ def _point_responses(s, i, rc, chain, articulated, u, dwb, K):
     """
     Write a point's responses to unit impulses along x, y and z (segment i, at rc).
 
-    dwb[a] (n_seg, 3) the joints' angular velocity changes for an impulse along axis a
-    (_unit_impulse_response), K[a] the point's velocity change: the sum over the rods up
-    to i of their change crossed with the rod (dw x b), and rod i's crossed with rc.
+    dwb[a] (n_seg, 3) the joints' angular velocity changes for an impulse along axis a,
+    K[a] the point's velocity change (_unit_impulse_velocity).
     """
-    R, length = chain
     for a in range(3):
         K[a, 0] = K[a, 1] = K[a, 2] = 0.0
         K[a, a] = 1.0
-        _unit_impulse_response(s, i, (K[a], rc), chain, articulated, (u, dwb[a]))
-        lx = ly = lz = 0.0
-        for j in range(i):
-            bx, by, bz = length[s, j] * R[s, j, 0, 2], length[s, j] * R[s, j, 1, 2], \
-                length[s, j] * R[s, j, 2, 2]
-            wx, wy, wz = dwb[a, j, 0], dwb[a, j, 1], dwb[a, j, 2]
-            lx += wy * bz - wz * by
-            ly += wz * bx - wx * bz
-            lz += wx * by - wy * bx
-        wx, wy, wz = dwb[a, i, 0], dwb[a, i, 1], dwb[a, i, 2]
-        K[a, 0] = lx + wy * rc[2] - wz * rc[1]
-        K[a, 1] = ly + wz * rc[0] - wx * rc[2]
-        K[a, 2] = lz + wx * rc[1] - wy * rc[0]
+        vx, vy, vz = _unit_impulse_velocity(s, i, (K[a], rc), chain, articulated,
+                                            (u, dwb[a]))
+        K[a, 0], K[a, 1], K[a, 2] = vx, vy, vz
 
 
 @njit_without_refcounts
@@ -810,14 +815,14 @@ def _speculative_contacts(s,
     the normal ones never pulling, are mended over the strand's contacts until none
     changes a velocity by more than IMPULSE_TOLERANCE (projected Gauss-Seidel through the
     articulated inertias of this step), and go into alpha. chain is (R, omega, length),
-    base the roots' (positions, velocities), scratch (u, dw, rc, and per point: segments,
+    base the roots' (positions, velocities), scratch (u, rc, and per point: segments,
     levers, normals, bounds, loads, normal and friction impulses, normal responses and
     their size along the normal, responses to impulses along x, y and z and the point's
     velocity changes for them). Returns the points held.
     """
     R, omega, length = chain
     roots, root_vel = base
-    (u, dw, rc, c_seg, c_lever, c_nrm, c_bound, c_load, c_lam, c_fric, c_dw, c_dvn, c_dwb,
+    (u, rc, c_seg, c_lever, c_nrm, c_bound, c_load, c_lam, c_fric, c_dw, c_dvn, c_dwb,
      c_K) = scratch
     n_seg = length.shape[1]
     n_c = 0
@@ -1216,8 +1221,8 @@ def step_chains(state,
                                   head,
                                   spheres,
                                   (Dinv, U_A, U_B),
-                                  (u_imp, dw, rc_imp, c_seg, c_lever, c_nrm, c_bound,
-                                   c_load, c_lam, c_fric, c_dw, c_dvn, c_dwb, c_K),
+                                  (u_imp, rc_imp, c_seg, c_lever, c_nrm, c_bound, c_load,
+                                   c_lam, c_fric, c_dw, c_dvn, c_dwb, c_K),
                                   alpha,
                                   h,
                                   state.friction)
@@ -1651,8 +1656,7 @@ class ArticulatedSolver:
             return
         self._blend_left -= h
         if self._blend_left <= 1e-9 * MATERIAL_BLEND_S:
-            self.k, self.offset = self.k_target, self.offset_target
-            self.blending = False
+            self._end_blend()
             return
         u = 1.0 - self._blend_left / MATERIAL_BLEND_S      # 0 -> 1
         w = u * u * (3.0 - 2.0 * u)                          # smoothstep: no jolt at the ends
