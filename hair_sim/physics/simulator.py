@@ -27,6 +27,12 @@ DEFAULT_DT = 1.0 / 240.0       # s: 4 steps per 60 Hz frame (pendulum period wit
 SUBSTEPS_PER_60HZ_FRAME = int(round(1.0 / (60.0 * DEFAULT_DT)))
 MAX_DT = 0.1
 RETRY_SUBSTEP_FACTOR = 4       # a step that came out non-finite is taken again this much finer
+# A retry that comes out non-finite too is taken again, RETRY_SUBSTEP_FACTOR times finer
+# each time, while a further try costs at most this many segment-substeps (about half a second of
+# one core for the articulated chain, forces included), before the hair is put back at
+# its rest shape: a few strands on their own may take thousands of substeps, a whole
+# shipped style about a thousand
+RETRY_MAX_WORK = 1_000_000
 STABILITY_MARGIN = 0.9         # explicit terms need omega * dt < 2 * margin
 SOLVERS = {'anjyo': AnjyoSolver, 'articulated': ArticulatedSolver}
 # The head counts as still (sleep may begin) below these
@@ -456,11 +462,7 @@ class HairSimulator:
             finest = int(np.max(counts))
             again = None
             if not finite:
-                again = RETRY_SUBSTEP_FACTOR * finest
-                if not self._joined():             # (strands apart: the others as they were)
-                    spoiled = ~np.isfinite(self.pos[:, -1]).all(axis=1)
-                    if spoiled.any():
-                        again = np.where(spoiled, again, counts)
+                again = self._finer_counts()
             else:
                 outran = self.solver.outran(h, counts)
                 if outran.any():
@@ -480,10 +482,18 @@ class HairSimulator:
                         again = max(finest, int(np.max(need)))
                     else:
                         again = np.where(outran, np.maximum(need, counts), counts)
+            # a whip that grows within the step (a stiff follicle let go far from its
+            # rest: the count is set from the swing where the step starts) can blow up at
+            # the finer count too, and not at a finer one still (/tmp script: one strand,
+            # root stiffness 1e3 let go at 1 rad, 1/60 s: finite at 1, 2 and 100 substeps,
+            # NaN at 12 to 64)
             if again is not None:
-                self._restore(saved)
-                self.counters['retried_steps'] += 1
-                finite = self._simulated(t, h, again, shared=np.ndim(again) == 0)
+                finite = self._take_again(saved, t, h, again)
+                while not finite:
+                    again = self._finer_counts()
+                    if self._retry_work(again) > RETRY_MAX_WORK:
+                        break
+                    finite = self._take_again(saved, t, h, again)
         if not finite:
             self.counters['diverged'] += 1
             self.reset()
@@ -553,6 +563,33 @@ class HairSimulator:
     def _joined(self):
         """Return whether inter-strip springs join strands (they then share a count)."""
         return bool(self.params.inter_strip and len(self.pairs))
+
+    def _finer_counts(self):
+        """
+        Return the substep counts to take a step again at after it came out non-finite.
+
+        RETRY_SUBSTEP_FACTOR times the finest count it took: for every strand (a number),
+        or, strands not joined by springs, for each that came out non-finite, the others
+        at the counts they took (an array).
+        """
+        counts = self._last_substeps
+        again = RETRY_SUBSTEP_FACTOR * int(np.max(counts))
+        if not self._joined():                     # (strands apart: the others as they were)
+            spoiled = ~np.isfinite(self.pos[:, -1]).all(axis=1)
+            if spoiled.any():
+                return np.where(spoiled, again, counts)
+        return again
+
+    def _take_again(self, saved, t, h, counts):
+        """Put the state back as the step found it and take it at counts; return finite."""
+        self._restore(saved)
+        self.counters['retried_steps'] += 1
+        return self._simulated(t, h, counts, shared=np.ndim(counts) == 0)
+
+    def _retry_work(self, counts):
+        """Return the segment-substeps of a step taken at counts (a number, or per strand)."""
+        per_strand = np.broadcast_to(counts, (self.pos.shape[0],))
+        return int(np.sum(per_strand)) * (self.pos.shape[1] - 1)
 
     def _simulated(self, t, h, at_least=1, shared=False):
         """Run _simulate; return whether the state came out finite."""
