@@ -26,6 +26,7 @@ from hair_sim.physics.wind import Wind
 DEFAULT_DT = 1.0 / 240.0       # s: 4 steps per 60 Hz frame (pendulum period within 1 %)
 SUBSTEPS_PER_60HZ_FRAME = int(round(1.0 / (60.0 * DEFAULT_DT)))
 MAX_DT = 0.1
+MAX_REST_EXTENT = 100.0        # m: how far from the head's origin a bare strand may lie
 RETRY_SUBSTEP_FACTOR = 4       # a step that came out non-finite is taken again this much finer
 # A retry that comes out non-finite too is taken again, RETRY_SUBSTEP_FACTOR times finer
 # each time, while a further try costs at most this many segment-substeps (about half a second of
@@ -67,11 +68,38 @@ class HairSimulator:
     # ----------------------------------------------------------------- set-up
     @classmethod
     def from_strands(cls, rest, head, pairs=None, **params):
-        """Simulate bare strands (n_strands, n_vertices, 3, head frame) without a style."""
+        """
+        Simulate bare strands (n_strands, n_vertices, 3, head frame) without a style.
+
+        Raises ValueError unless rest is finite, within MAX_REST_EXTENT m of the head's
+        origin and shaped (at least 1, at least 2, 3), and each of pairs (inter-strip
+        springs of type 1, (k, 2)) joins two different strands.
+        """
+        try:
+            rest = np.array(rest, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError('rest strands must be numbers shaped (strands, vertices, 3)') \
+                from None
+        if rest.ndim != 3 or rest.shape[0] < 1 or rest.shape[1] < 2 or rest.shape[2] != 3:
+            raise ValueError('rest strands must be shaped (strands >= 1, vertices >= 2, 3), '
+                             'not %s' % (rest.shape,))
+        if not (np.all(np.isfinite(rest)) and np.abs(rest).max() <= MAX_REST_EXTENT):
+            raise ValueError('rest strands must be finite and within %g m of the head'
+                             % MAX_REST_EXTENT)
+        if pairs is None:
+            pairs = np.zeros((0, 2), np.int64)
+        else:
+            try:
+                pairs = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+            except (TypeError, ValueError):
+                raise ValueError('pairs must be (strand, strand) index pairs') from None
+            if len(pairs) and (pairs.min() < 0 or pairs.max() >= rest.shape[0]
+                               or np.any(pairs[:, 0] == pairs[:, 1])):
+                raise ValueError('pairs must join two different strands of the %d'
+                                 % rest.shape[0])
         sim = cls.__new__(cls)
         sim._init_common(params)
-        sim._set_geometry(None, np.asarray(rest, dtype=np.float64), head,
-                          np.zeros((0, 2), np.int64) if pairs is None else pairs)
+        sim._set_geometry(None, rest, head, pairs)
         return sim
 
     def _init_common(self, params):
@@ -262,9 +290,25 @@ class HairSimulator:
         self._place_at_rest()
 
     def set_directions(self, directions):
-        """Place every segment along `directions` (n_strands, n_segments, 3, world), at rest."""
-        d = np.asarray(directions, dtype=np.float64)
-        d = np.ascontiguousarray(d / np.linalg.norm(d, axis=-1, keepdims=True))
+        """
+        Place every segment along `directions` (n_strands, n_segments, 3, world), at rest.
+
+        Raises ValueError, the hair left as it was, unless directions has that shape, is
+        finite and has no vector of zero (or unrepresentable) length.
+        """
+        shape = (self.pos.shape[0], self.pos.shape[1] - 1, 3)
+        try:
+            d = np.array(directions, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError('directions must be numbers shaped %s' % (shape,)) from None
+        if d.shape != shape:
+            raise ValueError('directions must be shaped %s (strands, segments, xyz), not %s'
+                             % (shape, d.shape))
+        with np.errstate(over='ignore', under='ignore', invalid='ignore', divide='ignore'):
+            d = d / np.abs(d).max(axis=-1, keepdims=True)      # (no overflow in the norm)
+            d = np.ascontiguousarray(d / np.linalg.norm(d, axis=-1, keepdims=True))
+        if not (np.all(np.isfinite(d)) and np.all(np.abs((d * d).sum(axis=-1) - 1.0) < 1e-9)):
+            raise ValueError('directions must be finite vectors of non-zero length')
         self.solver.place(self, d)
         roots = self.root_head @ self._R.T + self._p
         self.pos[:, 0] = roots
@@ -296,7 +340,8 @@ class HairSimulator:
         v = np.array(velocity_xyz, dtype=np.float64).reshape(3)
         if not np.all(np.isfinite(v)) or not math.isfinite(float(turbulence)):
             raise ValueError('wind must be finite')
-        speed = float(np.linalg.norm(v))
+        big = float(np.abs(v).max())            # (|v| of a huge finite v without overflow)
+        speed = big * float(np.linalg.norm(v / big)) if big > 0.0 else 0.0
         clamped = speed > self.params.max_wind_speed
         if clamped:
             v *= self.params.max_wind_speed / speed

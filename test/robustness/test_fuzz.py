@@ -103,3 +103,105 @@ def test_input_handlers_keep_the_state_finite(sim, stamp, pos, quat, wind, turb,
     assert np.all(np.isfinite(sim.pos)), (stamp, pos, quat, wind)
     assert float(np.linalg.norm(sim.wind.velocity)) <= sim.params.max_wind_speed + 1e-9
     assert not math.isnan(sim.time)
+
+
+def test_a_huge_finite_wind_is_clamped_along_its_direction(sim):
+    """A wind of 1e300 m/s is a gale at max_wind_speed along it, not still air."""
+    assert sim.set_wind([1e300, -1e300, 0.0]) == 'clamped'
+    top = sim.params.max_wind_speed
+    assert np.allclose(sim.wind.velocity, [top / math.sqrt(2), -top / math.sqrt(2), 0.0],
+                       rtol=1e-12, atol=0.0)
+    sim.set_wind([0.0, 0.0, 0.0])
+
+
+@pytest.fixture(scope='module', params=['anjyo', 'articulated'])
+def placed(request):
+    """One simulator per model for set_directions (state carries over)."""
+    return HairSimulator(load_hairstyle(paths.shipped_style('bob_fringe')), model=request.param)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[
+    HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_set_directions_refuses_what_is_not_a_direction_and_keeps_the_hair(placed, data):
+    """
+    Arbitrary directions: placed (and the state finite after a step) or ValueError.
+
+    The arrays are the right shape with NaN, infinities, zeros, huge or tiny numbers
+    anywhere, or another shape, or not numbers. A refusal leaves the strands, their
+    velocities and the step state as they were.
+    """
+    n, segs = placed.pos.shape[0], placed.pos.shape[1] - 1
+    shape = data.draw(st.sampled_from([(n, segs, 3), (n, segs, 3), (n, segs, 3), (n, segs),
+                                       (n - 1, segs, 3), (segs, 3), (n, segs, 4), ()]))
+    d = np.tile([0.0, 0.0, -1.0], (n, segs, 1))[..., :3] if len(shape) == 3 else None
+    if len(shape) == 3 and shape[2] == 3 and shape[0] == n:
+        for _ in range(data.draw(st.integers(0, 4))):
+            value = data.draw(st.one_of(finite_or_not, st.sampled_from(
+                [0.0, 1e-320, 1e300, -1e300])))
+            d[data.draw(st.integers(0, n - 1)), data.draw(st.integers(0, segs - 1)),
+              data.draw(st.integers(0, 2))] = value
+        if data.draw(st.booleans()):
+            d[data.draw(st.integers(0, n - 1)), data.draw(st.integers(0, segs - 1))] = 0.0
+    else:
+        d = data.draw(st.sampled_from([np.zeros(shape), 'up', [[None]], np.ones(shape)]))
+    before = [a.copy() for a in (placed.pos, placed.vel, placed.pos_prev)]
+    try:
+        placed.set_directions(d)
+    except ValueError:
+        for a, b in zip((placed.pos, placed.vel, placed.pos_prev), before):
+            assert np.array_equal(a, b)
+        return
+    placed.step(DEFAULT_DT)
+    assert np.all(np.isfinite(placed.pos))
+
+
+def _bare_rest():
+    """Three straight strands of five segments standing on a 0.1 m head, head frame."""
+    from hair_sim.bench import hanging
+    return hanging.rest_strands(3, 5), hanging.head_model()
+
+
+@pytest.mark.parametrize('model', ['anjyo', 'articulated'])
+@pytest.mark.parametrize('case', ['nan', 'inf', 'far', 'flat', 'one vertex', 'no strand',
+                                  'xy only', 'text', 'pair out of range', 'pair to itself',
+                                  'pair negative', 'pair not a pair'])
+def test_bare_strands_that_are_not_strands_are_refused_with_a_reason(model, case):
+    """
+    from_strands: NaN, infinite, far-flung or misshapen rests and bad pairs are ValueError.
+
+    Before, a NaN or a 1e300 in a rest built a simulator whose first step diverged and put
+    the hair back at that same rest; a 2-D array reached the kernels (a numba typing
+    error); an empty one failed on a reduction with no word of the rest.
+    """
+    rest, head = _bare_rest()
+    pairs = None
+    if case == 'nan':
+        rest[0, 2, 1] = np.nan
+    elif case == 'inf':
+        rest[1, 3, 0] = np.inf
+    elif case == 'far':
+        rest[2, 4, 2] = 1e300
+    elif case == 'flat':
+        rest = rest[0]
+    elif case == 'one vertex':
+        rest = rest[:, :1]
+    elif case == 'no strand':
+        rest = rest[:0]
+    elif case == 'xy only':
+        rest = rest[..., :2]
+    elif case == 'text':
+        rest = 'strands'
+    else:
+        pairs = {'pair out of range': [[0, 3]], 'pair to itself': [[1, 1]],
+                 'pair negative': [[-1, 0]], 'pair not a pair': [[0, 1, 2]]}[case]
+    with pytest.raises(ValueError, match='rest strands|pairs'):
+        HairSimulator.from_strands(rest, head, pairs=pairs, model=model)
+
+
+def test_bare_strands_that_are_strands_are_taken():
+    """The same rest untouched, with a valid pair, simulates and stays finite."""
+    rest, head = _bare_rest()
+    sim = HairSimulator.from_strands(rest, head, pairs=[[0, 1]], model='articulated')
+    sim.step(DEFAULT_DT)
+    assert np.all(np.isfinite(sim.pos)) and len(sim.pairs) == 1
