@@ -589,6 +589,9 @@ class HairSimulator:
         n = int(counts.max())
         if n > 1 and (shared or self._joined()):
             counts = np.full_like(counts, n)
+        # (before the kernels run: a retry takes its counts from these even when a kernel
+        # raised, or it would take the failed counts again and again)
+        self._last_substeps = counts
         if self.solver.whole_step:                 # every substep in one kernel call
             self._whole_step(t, h, n, counts)
         elif n == 1:                               # (the usual step: whole)
@@ -602,7 +605,6 @@ class HairSimulator:
                 self._substep(t - h + (k + 1) * h / n, h / n, strand_h, own_h, strand_t)
         self.counters['substeps'] += n
         self.counters['strand_substeps'] += int(counts.sum())
-        self._last_substeps = counts
         return counts
 
     def _joined(self):

@@ -1231,6 +1231,38 @@ def test_a_stiff_follicle_let_go_far_from_rest_is_stepped_finer_until_it_holds(
     assert seg[2] / np.linalg.norm(seg) > math.cos(0.05), seg     # back within 3 degrees
 
 
+def test_a_step_that_fails_at_every_count_ends_diverged_after_a_bounded_number_of_tries():
+    """
+    A kernel that raises at every count: the retries escalate, stop, and the step diverges.
+
+    Each retry takes RETRY_SUBSTEP_FACTOR times the counts of the try before it, until a
+    try would cost more than RETRY_MAX_WORK segment-substeps; then the hair is put back
+    at rest (SimulationDiverged, counted). The counts a retry escalates from are those of
+    the try that failed, even when it failed by raising (ZeroDivisionError, as the driver
+    allows for) before it finished.
+    """
+    from hair_sim.physics.simulator import (RETRY_MAX_WORK, RETRY_SUBSTEP_FACTOR,
+                                            SimulationDiverged)
+    sim = _two_strands(True)
+    sim.solver.whole_step = False
+    tried = []
+
+    def raising(s, strand_h, head, strand_t):
+        tried.append(int(np.max(s._last_substeps)))
+        if len(tried) > 50:                        # (fail, not hang, if the retries loop)
+            raise RuntimeError('tried %s' % tried[:8])
+        raise ZeroDivisionError('a kernel that always fails')
+
+    sim.solver.step = raising
+    with pytest.raises(SimulationDiverged):
+        sim.step(DEFAULT_DT)
+    segments = sim.pos.shape[0] * (sim.pos.shape[1] - 1)
+    assert tried[1:] == [RETRY_SUBSTEP_FACTOR * n for n in tried[:-1]], tried
+    assert tried[-1] * segments <= RETRY_MAX_WORK < RETRY_SUBSTEP_FACTOR * tried[-1] * segments
+    assert sim.counters['retried_steps'] == len(tried) - 1
+    assert sim.counters['diverged'] == 1
+
+
 def _bend_energy_reference(v, e0):
     """
     Return the bend energy over k from its definition, independently of the kernels.
