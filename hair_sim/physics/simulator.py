@@ -29,10 +29,10 @@ MAX_DT = 0.1
 MAX_REST_EXTENT = 100.0        # m: how far from the head's origin a bare strand may lie
 RETRY_SUBSTEP_FACTOR = 4       # a step that came out non-finite is taken again this much finer
 # A retry that comes out non-finite too is taken again, RETRY_SUBSTEP_FACTOR times finer
-# each time, while a further try costs at most this many segment-substeps (about half a second of
-# one core for the articulated chain, forces included), before the hair is put back at
-# its rest shape: a few strands on their own may take thousands of substeps, a whole
-# shipped style about a thousand
+# each time, while a further try costs at most this many segment-substeps (about half a
+# second of one core for the articulated chain, forces included), before the hair is put
+# back at its rest shape: a few strands on their own may take thousands of substeps, a
+# whole shipped style about a thousand
 RETRY_MAX_WORK = 1_000_000
 STABILITY_MARGIN = 0.9         # explicit terms need omega * dt < 2 * margin
 SOLVERS = {'anjyo': AnjyoSolver, 'articulated': ArticulatedSolver}
