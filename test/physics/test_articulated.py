@@ -1205,8 +1205,9 @@ def test_a_stiff_follicle_let_go_far_from_rest_is_stepped_finer_until_it_holds(
     air damping. The whip that runs down the strand within the first step needs more
     substeps than the swing where the step starts asks for, and more than the retry's
     RETRY_SUBSTEP_FACTOR times that: finite at 1, 2 and 4096 substeps, NaN at 16 to 1024
-    for 1e6 at 1/60 s. The hair was put back at its rest shape (SimulationDiverged) in 5
-    of these 6 cases. Now no step diverges, and physics bounds the outcome: with only
+    for 1e6 at 1/60 s. Before retries escalated (09df804) the hair was put back at its
+    rest shape (SimulationDiverged) in 5 of these 6 cases. Now no step diverges, and
+    physics bounds the outcome: with only
     damping, the energy (springs, gravity, motion) never rises above what the bent
     follicle held at the release, the segments keep their lengths, and the strand comes
     back to its rest, straight up.
