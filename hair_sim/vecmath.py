@@ -1,4 +1,4 @@
-"""Small numba vector helpers shared by the physics and render kernels."""
+"""Small vector helpers shared by the physics and render kernels (numba), and inputs."""
 
 from math import copysign, pi, sqrt
 
@@ -227,3 +227,26 @@ def distance_to_triangles(points, upper, vertices, triangles, out):
                 best = d
         out[i] = sqrt(best)
     return out
+
+
+# |v| below this may have lost digits to squares that underflowed (1e-300 squared is 0)
+_SMALLEST_PLAIN_LENGTH = 1e-150
+
+
+def vector_lengths(v):
+    """
+    Return |v| along the last axis, also where the squares overflow or underflow.
+
+    Where the plain norm is finite and not tiny it is returned as it is (so a direction
+    or a wind normalised by it is the same to the bit); elsewhere v is scaled by its
+    largest component first (1e154 and 1e-320 have lengths, not inf and 0). A zero
+    vector has length 0; a vector with a NaN or an infinity has length NaN.
+    """
+    v = np.asarray(v, dtype=np.float64)
+    with np.errstate(over='ignore', under='ignore', invalid='ignore', divide='ignore'):
+        # (one vector: norm's own dot product, which rounds unlike the sum along an axis)
+        plain = np.linalg.norm(v) if v.ndim == 1 else np.linalg.norm(v, axis=-1)
+        big = np.abs(v).max(axis=-1)
+        scaled = big * np.linalg.norm(v / big[..., None], axis=-1)
+    kept = np.isfinite(plain) & (plain >= _SMALLEST_PLAIN_LENGTH)
+    return np.where(kept, plain, np.where(big > 0.0, scaled, big))

@@ -22,6 +22,7 @@ from hair_sim.physics.params import PhysicsParams
 from hair_sim.physics.solvers.anjyo import AnjyoSolver
 from hair_sim.physics.solvers.articulated import ArticulatedSolver
 from hair_sim.physics.wind import Wind
+from hair_sim.vecmath import vector_lengths
 
 DEFAULT_DT = 1.0 / 240.0       # s: 4 steps per 60 Hz frame (pendulum period within 1 %)
 SUBSTEPS_PER_60HZ_FRAME = int(round(1.0 / (60.0 * DEFAULT_DT)))
@@ -304,11 +305,10 @@ class HairSimulator:
         if d.shape != shape:
             raise ValueError('directions must be shaped %s (strands, segments, xyz), not %s'
                              % (shape, d.shape))
-        with np.errstate(over='ignore', under='ignore', invalid='ignore', divide='ignore'):
-            d = d / np.abs(d).max(axis=-1, keepdims=True)      # (no overflow in the norm)
-            d = np.ascontiguousarray(d / np.linalg.norm(d, axis=-1, keepdims=True))
-        if not (np.all(np.isfinite(d)) and np.all(np.abs((d * d).sum(axis=-1) - 1.0) < 1e-9)):
+        lengths = vector_lengths(d)
+        if not np.all(np.isfinite(lengths) & (lengths > 0.0)):
             raise ValueError('directions must be finite vectors of non-zero length')
+        d = np.ascontiguousarray(d / lengths[..., None])
         self.solver.place(self, d)
         roots = self.root_head @ self._R.T + self._p
         self.pos[:, 0] = roots
@@ -340,8 +340,7 @@ class HairSimulator:
         v = np.array(velocity_xyz, dtype=np.float64).reshape(3)
         if not np.all(np.isfinite(v)) or not math.isfinite(float(turbulence)):
             raise ValueError('wind must be finite')
-        big = float(np.abs(v).max())            # (|v| of a huge finite v without overflow)
-        speed = big * float(np.linalg.norm(v / big)) if big > 0.0 else 0.0
+        speed = float(vector_lengths(v))
         clamped = speed > self.params.max_wind_speed
         if clamped:
             v *= self.params.max_wind_speed / speed
