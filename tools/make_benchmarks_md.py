@@ -420,8 +420,9 @@ def stress_articulated_section(stress):
             '(`hair_sim_bench stress --json --model articulated`)', '',
             'The same cases and pass rules; no turn clamp (the chain splits a step that would '
             'turn a segment more than 0.05 rad, and takes a step that blew up again with four '
-            'times the substeps, and four times finer again while a retry blows up too and '
-            'costs at most 1e6 segment-substeps, counted as retried). %d promised case(s) '
+            'times the substeps, and four times finer again while a retry blows up too, or '
+            'outruns its count, and costs at most 1e6 segment-substeps, counted as retried). '
+            '%d promised case(s) '
             'failed; %d of them '
             'only by not sleeping within the 4 s after the abuse (finite, exact lengths, no '
             'penetration past 1 mm)%s.'

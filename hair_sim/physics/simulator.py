@@ -115,7 +115,7 @@ class HairSimulator:
                          'diverged': 0,
                          'wall_springs': 0, 'recharts': 0, 'guard_moves': 0, 'wakes': 0,
                          'turn_clamps': 0, 'substeps': 0, 'strand_substeps': 0,
-                         'retried_steps': 0}
+                         'retried_steps': 0, 'outran_kept': 0}
         self.last_step_time = 0.0
         self.stability_dt = DEFAULT_DT      # the step set_params checks stability at
         self.state_version = 0              # bumped whenever positions may have changed
@@ -506,7 +506,7 @@ class HairSimulator:
             finest = int(np.max(counts))
             again = None
             if not finite:
-                again = self._finer_counts()
+                again = self._finer_counts(self._nonfinite_strands())
             else:
                 outran = self.solver.outran(h, counts)
                 if outran.any():
@@ -531,11 +531,24 @@ class HairSimulator:
             # the finer count too, and not at a finer one still (/tmp script: one strand,
             # root stiffness 1e3 let go at 1 rad, 1/60 s: finite at 1, 2 and 100 substeps,
             # NaN at 12 to 64)
+            # A retry that comes out finite but outran its own counts is on its way to a
+            # blow-up too (the next step's: a crumpled placement on a clamped follicle,
+            # /tmp script, ended a retry at 1024 substeps finite with 2.85e35 J and the
+            # next step diverged): it is taken finer again the same way. Past the budget a
+            # finite state is kept, as before.
             if again is not None:
                 finite = self._take_again(saved, t, h, again)
-                while not finite:
-                    again = self._finer_counts()
+                while True:
+                    if finite:
+                        spoiled = self.solver.outran(h, self._last_substeps)
+                        if not spoiled.any():
+                            break
+                    else:
+                        spoiled = self._nonfinite_strands()
+                    again = self._finer_counts(spoiled)
                     if self._retry_work(again) > RETRY_MAX_WORK:
+                        if finite:              # (the retry before: the finest in budget)
+                            self.counters['outran_kept'] += 1
                         break
                     finite = self._take_again(saved, t, h, again)
         if not finite:
@@ -610,20 +623,22 @@ class HairSimulator:
         """Return whether inter-strip springs join strands (they then share a count)."""
         return bool(self.params.inter_strip and len(self.pairs))
 
-    def _finer_counts(self):
+    def _nonfinite_strands(self):
+        """Return which strands came out of a step non-finite (n_strands,)."""
+        return ~np.isfinite(self.pos[:, -1]).all(axis=1)
+
+    def _finer_counts(self, spoiled):
         """
-        Return the substep counts to take a step again at after it came out non-finite.
+        Return the substep counts to take a step again at after it came out spoiled.
 
         RETRY_SUBSTEP_FACTOR times the finest count it took: for every strand (a number),
-        or, strands not joined by springs, for each that came out non-finite, the others
-        at the counts they took (an array).
+        or, strands not joined by springs, for each that is spoiled (non-finite, or out
+        of its count: the mask spoiled), the others at the counts they took (an array).
         """
         counts = self._last_substeps
         again = RETRY_SUBSTEP_FACTOR * int(np.max(counts))
-        if not self._joined():                     # (strands apart: the others as they were)
-            spoiled = ~np.isfinite(self.pos[:, -1]).all(axis=1)
-            if spoiled.any():
-                return np.where(spoiled, again, counts)
+        if not self._joined() and spoiled.any():   # (strands apart: the others as they were)
+            return np.where(spoiled, again, counts)
         return again
 
     def _take_again(self, saved, t, h, counts):

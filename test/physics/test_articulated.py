@@ -1232,6 +1232,41 @@ def test_a_stiff_follicle_let_go_far_from_rest_is_stepped_finer_until_it_holds(
     assert seg[2] / np.linalg.norm(seg) > math.cos(0.05), seg     # back within 3 degrees
 
 
+@pytest.mark.parametrize('seed, placements', [(0, 40), (2, 110)])
+def test_crumpled_placements_on_a_clamped_follicle_are_stepped_finer_not_reset(
+        seed, placements):
+    """
+    A retry that comes out finite but outran its count is taken finer again, not kept.
+
+    The hanging scene's clamped follicles (root stiffness 1e6) with 3 strands of 5
+    segments, each segment placed in a random direction by set_directions (some inside
+    the head), then 1 s at 1/60 s. Such a placement stores joules in milligrams of hair.
+    When the retry that took the counts the swings at the end of the first try asked for
+    was kept because it was finite, some had outrun those counts too (one ended at 2.85e35
+    J) and the next step diverged: on 4237789, placements 34 of seed 0 and 92, 98 and 107
+    of seed 2 put the hair back at rest (SimulationDiverged). Now none is reset, and
+    physics bounds the outcome: with the head still and only damping, the energy
+    (springs, gravity, motion) never rises above what the placement held, and the
+    segments keep their lengths.
+    """
+    rng = np.random.default_rng(seed)
+    rest = hanging.rest_strands(3, 5)
+    for _ in range(placements):
+        sim = HairSimulator.from_strands(rest, hanging.head_model(),
+                                         **hanging.scene_params('articulated'))
+        sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+        sim.set_directions(rng.normal(size=(3, 5, 3)))
+        placed = sum(sim.energy())
+        highest = placed
+        for _ in range(60):
+            sim.step(1 / 60)
+            highest = max(highest, sum(sim.energy()))
+        assert sim.counters['diverged'] == 0
+        assert highest <= placed * (1 + 1e-9), (highest, placed)
+        lengths = np.linalg.norm(np.diff(sim.pos, axis=1), axis=2)
+        assert np.allclose(lengths, 0.06, rtol=1e-9, atol=0.0)
+
+
 def test_a_step_that_fails_at_every_count_ends_diverged_after_a_bounded_number_of_tries():
     """
     A kernel that raises at every count: the retries escalate, stop, and the step diverges.
