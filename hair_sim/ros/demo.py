@@ -16,6 +16,7 @@ import sys
 import time
 
 import rclpy
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
 
@@ -82,7 +83,7 @@ def main(argv=None):
                 break
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except ValueError as exc:
+    except (ValueError, ParameterException) as exc:
         print('hair_sim_demo: %s' % exc, file=sys.stderr)
         code = 1
     finally:

@@ -32,6 +32,7 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
                                 SetParametersResult)
 import rclpy
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import (DurabilityPolicy, qos_profile_sensor_data, QoSProfile,
@@ -114,6 +115,11 @@ class HairSimNode(Node):
         self.refused = Counter()          # refused inputs by kind (in /diagnostics)
         self.errors = Counter()           # unexpected errors caught, by callback
         self._validated = None            # (parameters, derived values) from on_set
+        # what --ros-args -p gives is checked as a SetParameters call is (the physics by
+        # PhysicsParams and the step below): a node refuses to start on what it refuses
+        why = self._value_problem({name: self._p(name) for name in self._specs})
+        if why:
+            raise ValueError('parameters refused: %s' % why)
         style = self._read_style(self._p('hairstyle'), self._p('hairstyle_dirs'),
                                  self._rates())
         sim = HairSimulator(style, **self._physics_params())
@@ -121,9 +127,6 @@ class HairSimNode(Node):
             sim.plan_step(1.0 / self._p('sim_rate'))
         except ValueError as exc:
             raise ValueError('physics parameters refused: %s' % exc) from None
-        if self._p('meshcat.view') not in CAMERA_VIEWS:
-            raise ValueError('meshcat.view must be one of %s, not %r'
-                             % (', '.join(CAMERA_VIEWS), self._p('meshcat.view')[:40]))
         self.scene = Scene(1, sim, HairRenderer.for_simulator(sim))
         self._committed = 0               # seq of the last build job swapped in
         self._encoder = None
@@ -241,32 +244,9 @@ class HairSimNode(Node):
         new = {p.name: p.value for p in params if p.name in self._specs}
         if not new:
             return SetParametersResult(successful=True)
-        for name, value in new.items():
-            default = self._specs[name][0]
-            if isinstance(value, float) and not math.isfinite(value):
-                return self._param_refused('%s must be finite' % name)
-            if isinstance(default, str) and name.endswith('frame') \
-                    and value and not fields._FRAME.match(value):
-                return self._param_refused('%s %r is not a valid frame name' % (name, value))
-        if 'viewpoint' in new:
-            try:
-                vp = [float(v) for v in new['viewpoint']]
-            except (TypeError, ValueError):
-                vp = []
-            if len(vp) != 3 or not all(math.isfinite(v) and abs(v) < 1e3 for v in vp):
-                return self._param_refused('viewpoint must be 3 finite numbers (m)')
-        if 'hairstyle_dirs' in new:
-            bad = [d for d in new['hairstyle_dirs'] if d != '' and not _is_dir(d)]
-            if bad or not new['hairstyle_dirs']:
-                return self._param_refused('hairstyle_dirs: %s is not a directory'
-                                           % (bad[0] if bad else '(none given)'))
-        if 'meshcat.zmq_url' in new and new['meshcat.zmq_url'] and (
-                not new['meshcat.zmq_url'].startswith('tcp://')
-                or len(new['meshcat.zmq_url']) > 200):
-            return self._param_refused('meshcat.zmq_url must be empty or tcp://host:port')
-        if 'meshcat.view' in new and new['meshcat.view'] not in CAMERA_VIEWS:
-            return self._param_refused('meshcat.view must be one of %s, not %r' % (
-                ', '.join(CAMERA_VIEWS), new['meshcat.view'][:40]))
+        why = self._value_problem(new)
+        if why:
+            return self._param_refused(why)
         physics = {k[len(PHYSICS):]: v for k, v in new.items() if k.startswith(PHYSICS)}
         rates = self._rates({k: new[k] for k in ('sim_rate', 'publish_rate') if k in new})
         rates['model'] = physics.get('model', rates['model'])
@@ -296,6 +276,45 @@ class HairSimNode(Node):
                 return self._param_refused(problem)
         self._validated = (params_key(params), style)
         return SetParametersResult(successful=True)
+
+    def _value_problem(self, new):
+        """
+        Return why values refused whatever the scene is are refused, or None.
+
+        new is {name: value}. Numbers must be finite; frame names valid (world_frame not
+        empty: poses, wind and world-frame output are in it; head_frame may be, for the
+        head file's frame); and viewpoint, hairstyle_dirs and the meshcat strings what
+        they say. The same checks refuse a SetParameters call and a node's start.
+        """
+        for name, value in new.items():
+            default = self._specs[name][0]
+            if isinstance(value, float) and not math.isfinite(value):
+                return '%s must be finite' % name
+            if isinstance(default, str) and name.endswith('frame') \
+                    and value and not fields._FRAME.match(value):
+                return '%s %r is not a valid frame name' % (name, value)
+        if 'world_frame' in new and not new['world_frame']:
+            return 'world_frame must name a frame (head poses, wind and output are in it)'
+        if 'viewpoint' in new:
+            try:
+                vp = [float(v) for v in new['viewpoint']]
+            except (TypeError, ValueError):
+                vp = []
+            if len(vp) != 3 or not all(math.isfinite(v) and abs(v) < 1e3 for v in vp):
+                return 'viewpoint must be 3 finite numbers (m)'
+        if 'hairstyle_dirs' in new:
+            bad = [d for d in new['hairstyle_dirs'] if d != '' and not _is_dir(d)]
+            if bad or not new['hairstyle_dirs']:
+                return 'hairstyle_dirs: %s is not a directory' % (bad[0] if bad else
+                                                                  '(none given)')
+        if 'meshcat.zmq_url' in new and new['meshcat.zmq_url'] and (
+                not new['meshcat.zmq_url'].startswith('tcp://')
+                or len(new['meshcat.zmq_url']) > 200):
+            return 'meshcat.zmq_url must be empty or tcp://host:port'
+        if 'meshcat.view' in new and new['meshcat.view'] not in CAMERA_VIEWS:
+            return 'meshcat.view must be one of %s, not %r' % (', '.join(CAMERA_VIEWS),
+                                                               new['meshcat.view'][:40])
+        return None
 
     @guarded('parameters')
     def _apply_parameters(self, params):
@@ -797,7 +816,8 @@ def main(args=None):
                 node._internal_error('executor', exc)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except (HairstyleError, ValueError) as exc:
+    except (HairstyleError, ValueError, ParameterException) as exc:
+        # (a value out of its declared range, or of the wrong type, is refused by rclpy)
         print('hair_sim_node: %s' % exc, file=sys.stderr)
         return 1
     finally:

@@ -393,6 +393,10 @@ def test_9_the_smaller_ones(live):
     assert res[0].successful, res[0].reason
     res = live.client.set_parameters(NODE, {'viewpoint': [0.5, 0.1]})
     assert not res[0].successful and 'viewpoint' in res[0].reason
+    # an empty world frame: every head pose (frame 'world') would be refused as in the
+    # wrong frame, and the output stamped with no frame
+    res = live.client.set_parameters(NODE, {'world_frame': ''})
+    assert not res[0].successful and 'world_frame' in res[0].reason, res[0].reason
     pub = live.client.node.create_publisher(Wind, 'wind', 10)
     assert wait_for(lambda: pub.get_subscription_count() > 0, 10.0)
     w = Wind()
@@ -417,3 +421,32 @@ def test_9_the_smaller_ones(live):
             lambda d: d.__setitem__('head', ref))))
         refused(r, 'not found')
         assert str(outside) not in r.message and '/etc' not in r.message, r.message
+
+
+@pytest.mark.parametrize('args, fragment', [
+    (['-p', 'use_viewpoint:=true', '-p', 'viewpoint:=[.nan, 0.0, 0.0]'], 'viewpoint'),
+    (['-p', "world_frame:=''"], 'world_frame'),
+    (['-p', 'head_frame:=1bad'], 'head_frame'),
+    (['-p', 'meshcat.zmq_url:=http://localhost:6000'], 'meshcat.zmq_url'),
+    (['-p', "hairstyle_dirs:=['/nonexistent/styles']"], 'hairstyle_dirs'),
+    (['-p', 'meshcat.view:=top'], 'meshcat.view'),
+    (['-p', 'publish_rate:=.nan'], 'publish_rate'),
+    (['-p', 'publish_rate:=fast'], 'publish_rate'),
+    (['-p', 'physics.damping:=-1.0'], 'physics.damping'),
+])
+def test_10_a_node_started_with_a_value_it_would_refuse_exits_and_says_which(args, fragment):
+    """
+    What --ros-args -p gives is checked as a SetParameters call is.
+
+    Before, only the physics and meshcat.view were: a NaN viewpoint, an empty world frame
+    or a missing hairstyle directory started a node that then culled, refused every head
+    pose or loaded from nowhere without a word, and a value out of its declared range or
+    of the wrong type ended it with rclpy's traceback. Now the node exits 1 at once with
+    one line naming the parameter, as `hair_sim_node --ros-args -p ...` is typed.
+    """
+    cmd = [os.path.join(os.path.dirname(sys.executable), 'hair_sim_node'), '--ros-args']
+    done = subprocess.run(cmd + args, capture_output=True, text=True, timeout=60)
+    out = done.stdout + done.stderr
+    assert done.returncode == 1, out[-2000:]
+    assert fragment in out and 'Traceback' not in out, out[-2000:]
+    assert out.strip().startswith('hair_sim_node: '), out[-2000:]
