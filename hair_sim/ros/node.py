@@ -101,6 +101,10 @@ def guarded(kind):
     return wrap
 
 
+# parameters every rclpy node has (not in config/hair_sim.yaml)
+ROS_OWN_PARAMETERS = {'use_sim_time', 'start_type_description_service'}
+
+
 class HairSimNode(Node):
     """Own topics, parameters, services and timers; the numerics live in HairSimulator."""
 
@@ -120,6 +124,16 @@ class HairSimNode(Node):
         why = self._value_problem({name: self._p(name) for name in self._specs})
         if why:
             raise ValueError('parameters refused: %s' % why)
+        # a name this node does not declare (a typo: physics.dampin) is ignored by rclpy
+        # without a word; say so once (the overrides from --ros-args and params files)
+        unknown = sorted(set(getattr(self, '_parameter_overrides', {})) - set(self._specs)
+                         - ROS_OWN_PARAMETERS)
+        if unknown:
+            self.get_logger().warning(
+                'ignored: %s %s (see config/hair_sim.yaml)'
+                % (', '.join(_short(n) for n in unknown[:10]),
+                   'is not a parameter of this node' if len(unknown) == 1
+                   else 'are not parameters of this node'))
         style = self._read_style(self._p('hairstyle'), self._p('hairstyle_dirs'),
                                  self._rates())
         sim = HairSimulator(style, **self._physics_params())

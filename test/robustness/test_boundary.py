@@ -450,3 +450,21 @@ def test_10_a_node_started_with_a_value_it_would_refuse_exits_and_says_which(arg
     assert done.returncode == 1, out[-2000:]
     assert fragment in out and 'Traceback' not in out, out[-2000:]
     assert out.strip().startswith('hair_sim_node: '), out[-2000:]
+
+
+def test_11_a_parameter_the_node_does_not_have_is_named_in_a_warning(tmp_path):
+    """
+    A mistyped name (physics.dampin) is ignored by rclpy without a word: the node says so.
+
+    It still starts and publishes (ROS ignores overrides a node does not declare), and
+    its log names what it ignored, once.
+    """
+    node = NodeProcess(tmp_path, ['-p', 'physics.dampin:=3.0'])
+    try:
+        assert wait_for(lambda: 'hair_sim: ' in node.output(), 60.0), node.output()[-2000:]
+        out = node.output()
+        assert node.alive(), out[-2000:]
+        assert out.count('physics.dampin') == 1 and 'ignored' in out, out[-2000:]
+        assert 'physics.damping' not in out, out[-2000:]
+    finally:
+        node.stop()
