@@ -15,6 +15,7 @@ and the renderer. Its boundary holds against careless and hostile pipelines:
 - every published message carries the stamp of the head pose it was computed for.
 """
 
+import argparse
 from collections import Counter, deque
 import functools
 import math
@@ -38,6 +39,7 @@ from rclpy.node import Node
 from rclpy.qos import (DurabilityPolicy, qos_profile_sensor_data, QoSProfile,
                        ReliabilityPolicy)
 from rclpy.task import Future
+from rclpy.utilities import remove_ros_args
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
@@ -815,8 +817,34 @@ def _is_dir(path):
         return False
 
 
+def parameter_help():
+    """Return every parameter with its default, range and description, for --help."""
+    lines = ['parameters (--ros-args -p name:=value, or --params-file FILE; all in '
+             'config/hair_sim.yaml):']
+    for name, (default, description, rng) in all_parameters().items():
+        bounds = ' [%g, %g]' % tuple(rng) if rng else ''
+        lines.append('  %s := %r%s  %s' % (name, default, bounds, description))
+    return '\n'.join(lines)
+
+
+def check_own_arguments(argv):
+    """
+    Answer --help, and refuse what is not a ROS argument (exit 2), before ROS starts.
+
+    A node takes its settings as --ros-args -p name:=value: anything else (hair_sim_demo's
+    --style given to the node) would be ignored without a word.
+    """
+    own = remove_ros_args(list(argv))[1:]
+    if own:
+        parser = argparse.ArgumentParser(
+            prog='hair_sim_node', description=__doc__.strip().splitlines()[0],
+            epilog=parameter_help(), formatter_class=argparse.RawDescriptionHelpFormatter)
+        parser.parse_args(own)
+
+
 def main(args=None):
     """Run hair_sim_node until Ctrl-C or shutdown; bad input never ends it."""
+    check_own_arguments(sys.argv if args is None else args)
     rclpy.init(args=args)
     node = None
     try:

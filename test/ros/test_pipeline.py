@@ -159,3 +159,22 @@ def test_the_shipped_launch_file_names_real_executables_and_parameters():
                 if p.get('name') == 'head_frame':
                     frames.add(p.get('value'))
     assert len(namespaces) == len(groups) == len(frames)
+
+
+def test_the_node_answers_help_and_refuses_arguments_it_does_not_take():
+    """
+    `hair_sim_node --help` lists every parameter; a non-ROS argument is refused, not ignored.
+
+    Before, --help started the node, and --style bob_fringe (the demo's option, given to
+    the node) ran thesis_long without a word.
+    """
+    from hair_sim.ros.params import all_parameters
+    exe = os.path.join(os.path.dirname(sys.executable), 'hair_sim_node')
+    done = subprocess.run([exe, '--help'], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr[-2000:]
+    listed = {line.split()[0] for line in done.stdout.splitlines() if ' := ' in line}
+    assert listed == set(all_parameters()), set(all_parameters()) ^ listed
+    done = subprocess.run([exe, '--style', 'bob_fringe', '--ros-args', '-p', 'sim_rate:=120.0'],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2, done.stdout[-2000:] + done.stderr[-2000:]
+    assert 'unrecognized arguments: --style bob_fringe' in done.stderr, done.stderr[-2000:]
