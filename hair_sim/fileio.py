@@ -40,6 +40,36 @@ def write_atomic(path, data, mode=0o644):
     return path
 
 
+def files_as_they_are(paths):
+    """Return {path: its bytes, or None where there is no file}, to put back on failure."""
+    out = {}
+    for path in paths:
+        try:
+            with open(path, 'rb') as f:
+                out[path] = f.read()
+        except FileNotFoundError:
+            out[path] = None
+    return out
+
+
+def put_files_back(saved):
+    """
+    Put files back as files_as_they_are found them: rewritten atomically, or removed.
+
+    For writes of several files that belong together (a head file and its display mesh):
+    when one of them, or the check after, fails, none is left changed.
+    """
+    for path, data in saved.items():
+        try:
+            if data is None:
+                if os.path.lexists(path):
+                    os.unlink(path)
+            else:
+                write_atomic(path, data)
+        except OSError:
+            pass
+
+
 def save_figure(fig, path, dpi=100):
     """Save a matplotlib figure as a PNG, atomically."""
     import io

@@ -23,6 +23,9 @@ y left, z up, metres; `--axes` and `--scale` map other conventions onto it). Ste
 The fit is reported as percentiles of the surface-to-union distance above the chin.
 """
 
+import io
+import os
+
 import numpy as np
 
 from numba import njit
@@ -58,6 +61,11 @@ class FitError(ValueError):
     """A mesh cannot be fitted (unreadable, empty, not closed enough)."""
 
 
+def _extension(path):
+    """Return a file's extension, lower case, without the dot ('obj')."""
+    return os.path.splitext(path)[1].lower().lstrip('.')
+
+
 def load_mesh(path, axes='xyz', scale=1.0):
     """
     Read a triangle mesh with trimesh; return (vertices (n, 3), triangles (m, 3)).
@@ -67,7 +75,16 @@ def load_mesh(path, axes='xyz', scale=1.0):
     """
     import trimesh
     try:
-        loaded = trimesh.load(path, force='mesh', process=False)
+        try:
+            loaded = trimesh.load(path, force='mesh', process=False)
+        except ImportError:
+            # a text mesh that is not UTF-8 (an OBJ exported with a Latin-1 comment or
+            # name): trimesh guesses its encoding with a package this one does not need.
+            # The geometry is ASCII: read it with what is not UTF-8 replaced.
+            with open(path, 'rb') as f:
+                text = f.read().decode('utf-8', errors='replace').encode('utf-8')
+            loaded = trimesh.load(io.BytesIO(text), file_type=_extension(path),
+                                  force='mesh', process=False)
     except Exception as exc:    # trimesh raises many kinds for a file it cannot read
         raise FitError('%s: cannot read a mesh (%s)' % (path, exc)) from None
     v = np.asarray(getattr(loaded, 'vertices', np.zeros((0, 3))), dtype=np.float64)

@@ -17,6 +17,7 @@ import os
 import sys
 import time
 
+from hair_sim.fileio import files_as_they_are, put_files_back
 from hair_sim.modeling.errors import HairstyleError
 from hair_sim.modeling.glb import GlbError
 
@@ -35,8 +36,13 @@ def fit_command(args):
     name = os.path.splitext(os.path.basename(out))[0]
     glb = os.path.join(os.path.dirname(out), name + '_display.glb')
     for path in (out, glb):
+        if os.path.isdir(path):
+            raise HairstyleError('%s is a directory, not a file to write' % path)
         if os.path.exists(path) and not args.force:
             raise HairstyleError('%s exists (use --force to replace it)' % path)
+    folder = os.path.dirname(out)
+    if not (os.path.isdir(folder) and os.access(folder, os.W_OK | os.X_OK)):
+        raise HairstyleError('cannot write into %s' % folder)
     t0 = time.perf_counter()
     vertices, triangles = head_fit.load_mesh(args.mesh, args.axes, args.scale)
     spheres, samples, above, top = head_fit.fit_spheres(vertices, triangles, args.spheres)
@@ -47,18 +53,29 @@ def fit_command(args):
     head = head_fit.head_from_spheres(spheres, top, name,
                                       os.path.basename(glb) if drawable else '')
     report = head_fit.fit_report(spheres, samples, above, time.perf_counter() - t0)
-    if drawable:
-        write_glb(glb, vertices.astype(np.float32), triangles.astype(np.uint32))
-    else:
+    if not drawable:
         report['display_mesh_skipped'] = (
             '%d vertices, %d triangles: over what the viewers read (%d vertices, %d MiB); '
             'decimate the mesh and fit again to draw it' % (
                 len(vertices), len(triangles), glb_limits.MAX_VERTICES,
                 glb_limits.MAX_BYTES >> 20))
-    write_yaml_atomic(out, head)
-    loaded = load_head(out)          # what the node will read: it must load back
-    if drawable:
-        loaded.display_mesh()        # and its display mesh too
+    # the head file and its display mesh together, or neither: on any failure (a write, or
+    # the check that they load back) both are put back as they were
+    before = files_as_they_are([glb, out] if drawable else [out])
+    try:
+        if drawable:
+            write_glb(glb, vertices.astype(np.float32), triangles.astype(np.uint32))
+        write_yaml_atomic(out, head)
+        loaded = load_head(out)          # what the node will read: it must load back
+        if drawable:
+            loaded.display_mesh()        # and its display mesh too
+    except OSError as exc:
+        put_files_back(before)
+        raise HairstyleError('cannot write %s (and its display mesh): %s'
+                             % (out, exc.strerror or exc)) from None
+    except BaseException:
+        put_files_back(before)
+        raise
     report.update({'head': out, 'display_mesh': glb if drawable else None,
                    'scalp_spheres': len(loaded.scalp), 'body_spheres': len(loaded.body)})
     print(json.dumps(report, indent=1))

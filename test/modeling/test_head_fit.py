@@ -250,3 +250,59 @@ def test_fit_of_a_mesh_too_large_to_draw_keeps_the_spheres(fitted, monkeypatch, 
     head = load_head(str(out))
     assert head.mesh == '' and head.display_mesh() is None and len(head.collision) == 12
     assert not (folder / 'huge_display.glb').exists()
+
+
+@pytest.mark.parametrize('existing', [False, True])
+def test_fit_writes_the_head_file_and_its_mesh_together_or_neither(fitted, monkeypatch,
+                                                                   capsys, existing):
+    """
+    A head file that cannot be written leaves neither it nor its display mesh changed.
+
+    The display mesh is written first; before, a head file that then failed (its folder
+    full, or --out naming a directory) left a new mesh behind, and with --force a head file
+    that no longer matched the mesh beside it. Now both are put back as they were: absent,
+    or byte for byte what they held.
+    """
+    from hair_sim.modeling import yamlio
+    _, _, folder = fitted
+    out, mesh = folder / 'pair.yaml', folder / 'pair_display.glb'
+    if existing:
+        out.write_bytes(b'old head\n')
+        mesh.write_bytes(b'old mesh')
+
+    def full(path, data):
+        raise OSError(28, 'No space left on device')
+
+    monkeypatch.setattr(yamlio, 'write_yaml_atomic', full)
+    assert head_tool(['fit', str(folder / 'avatar.glb'), '--out', str(out), '--spheres', '12',
+                      '--force']) == 2
+    assert 'No space left on device' in capsys.readouterr().err
+    if existing:
+        assert out.read_bytes() == b'old head\n' and mesh.read_bytes() == b'old mesh'
+    else:
+        assert not out.exists() and not mesh.exists()
+    assert not [p for p in os.listdir(folder) if p.endswith('.tmp')]
+    assert head_tool(['fit', str(folder / 'avatar.glb'), '--out', str(folder)]) == 2
+    assert 'is a directory' in capsys.readouterr().err
+    assert not (folder.parent / ('%s_display.glb' % folder.name)).exists()
+
+
+def test_fit_reads_an_obj_that_is_not_utf8_as_it_reads_the_same_mesh_in_utf8(fitted, capsys):
+    """
+    An OBJ with a Latin-1 comment (an exporter's locale) fits as the same OBJ in UTF-8 does.
+
+    Before, trimesh tried to guess its encoding with a package hair_sim does not install,
+    and the mesh was refused: "cannot read a mesh (No module named 'charset_normalizer')".
+    """
+    import trimesh
+    _, _, folder = fitted
+    v, t = load_head(str(folder / 'avatar.yaml')).display_mesh()
+    utf8 = folder / 'plain.obj'
+    trimesh.Trimesh(v, t, process=False).export(str(utf8))
+    latin1 = folder / 'latin1.obj'
+    latin1.write_bytes(b'# t\xeate de Jos\xe9\n' + utf8.read_bytes())
+    for mesh in (utf8, latin1):
+        assert head_tool(['fit', str(mesh), '--spheres', '12']) == 0, capsys.readouterr().err
+    capsys.readouterr()
+    a, b = load_head(str(folder / 'plain.yaml')), load_head(str(folder / 'latin1.yaml'))
+    assert np.array_equal(a.collision, b.collision) and len(a.collision) == 12
