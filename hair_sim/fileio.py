@@ -40,6 +40,16 @@ def write_atomic(path, data, mode=0o644):
     return path
 
 
+def unwritable_file(path):
+    """Return why a file cannot be written at `path` (a folder there, or no such folder)."""
+    if os.path.isdir(path):
+        return '%s is a directory, not a file to write' % path
+    folder = os.path.dirname(os.path.abspath(path))
+    if not (os.path.isdir(folder) and os.access(folder, os.W_OK | os.X_OK)):
+        return 'cannot write into %s' % folder
+    return None
+
+
 def files_as_they_are(paths):
     """Return {path: its bytes, or None where there is no file}, to put back on failure."""
     out = {}

@@ -17,7 +17,7 @@ import os
 import sys
 import time
 
-from hair_sim.fileio import files_as_they_are, put_files_back
+from hair_sim.fileio import files_as_they_are, put_files_back, unwritable_file
 from hair_sim.modeling.errors import HairstyleError
 from hair_sim.modeling.glb import GlbError
 
@@ -36,13 +36,10 @@ def fit_command(args):
     name = os.path.splitext(os.path.basename(out))[0]
     glb = os.path.join(os.path.dirname(out), name + '_display.glb')
     for path in (out, glb):
-        if os.path.isdir(path):
-            raise HairstyleError('%s is a directory, not a file to write' % path)
+        if unwritable_file(path):
+            raise HairstyleError(unwritable_file(path))
         if os.path.exists(path) and not args.force:
             raise HairstyleError('%s exists (use --force to replace it)' % path)
-    folder = os.path.dirname(out)
-    if not (os.path.isdir(folder) and os.access(folder, os.W_OK | os.X_OK)):
-        raise HairstyleError('cannot write into %s' % folder)
     t0 = time.perf_counter()
     vertices, triangles = head_fit.load_mesh(args.mesh, args.axes, args.scale)
     spheres, samples, above, top = head_fit.fit_spheres(vertices, triangles, args.spheres)

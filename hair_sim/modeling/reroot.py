@@ -18,6 +18,7 @@ import os
 
 import numpy as np
 
+from hair_sim.fileio import unwritable_file
 from hair_sim.modeling.errors import HairstyleError
 from hair_sim.modeling.hairstyle import hairstyle_from_dict, save_hairstyle
 
@@ -135,6 +136,8 @@ def reroot_file(style_path, head_path, out=None, force=False):
         out = os.path.join(os.path.dirname(os.path.abspath(head_path)),
                            '%s_on_%s.yaml' % (style.name, head.name))
     out = os.path.abspath(out)
+    if unwritable_file(out):
+        raise HairstyleError(unwritable_file(out))
     if os.path.exists(out) and not force:
         raise HairstyleError('%s exists (use --force to replace it)' % out)
     ref = os.path.relpath(os.path.abspath(head_path), os.path.dirname(out))

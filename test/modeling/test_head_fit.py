@@ -235,6 +235,11 @@ def test_reroot_refuses_to_overwrite_and_names_the_reason(fitted, capsys):
     assert head_tool(['reroot', path, str(folder / 'avatar.yaml'), '--out', str(out),
                       '--force']) == 0
     assert out.read_bytes() == first            # the same input gives the same file
+    for where, why in ((folder, 'is a directory'), (folder / 'none' / 'x.yaml', 'cannot write')):
+        assert head_tool(['reroot', path, str(folder / 'avatar.yaml'), '--out', str(where),
+                          '--force']) == 2
+        err = capsys.readouterr().err
+        assert why in err and '.tmp' not in err, err
 
 
 def test_fit_of_a_mesh_too_large_to_draw_keeps_the_spheres(fitted, monkeypatch, capsys):
