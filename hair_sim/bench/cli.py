@@ -24,6 +24,27 @@ import sys
 from hair_sim.bench.common import clean, emit
 
 
+PLOTTING = ('accuracy', 'scale', 'stress', 'hanging')     # the commands that write --plots
+
+
+def plots_folder_problem(path):
+    """
+    Return why the plots cannot be written into `path` (made if missing), or None.
+
+    Checked before a command measures anything: the plots are written at the end, and a
+    30-minute stress run that then failed on them printed no JSON either.
+    """
+    if os.path.exists(path) and not os.path.isdir(path):
+        return '--plots %s is a file, not a folder' % path
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as exc:
+        return '--plots %s: cannot make it (%s)' % (path, exc.strerror or exc)
+    if not os.access(path, os.W_OK | os.X_OK):
+        return '--plots %s: cannot write into it' % path
+    return None
+
+
 def main(argv=None):
     """Run one benchmark command; stress and settle exit 1 if a promised case failed."""
     parser = argparse.ArgumentParser(prog='hair_sim_bench', description=__doc__,
@@ -36,6 +57,8 @@ def main(argv=None):
     parser.add_argument('--model', choices=['anjyo', 'articulated'], default='anjyo',
                         help='the strand model the cases run (stress and settle only)')
     args = parser.parse_args(argv)
+    if args.command in PLOTTING and plots_folder_problem(args.plots):
+        parser.error(plots_folder_problem(args.plots))
     os.environ.setdefault('NUMBA_NUM_THREADS', '1')
     if args.command == 'accuracy':
         from hair_sim.bench import accuracy

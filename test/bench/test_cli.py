@@ -136,3 +136,22 @@ def test_settle_samples_the_motion_at_a_phase_per_seed(monkeypatch):
     t, p = seen[0]
     np.testing.assert_allclose(p, scenarios.violent(t + 0.89)[0])
     assert not np.allclose(p, scenarios.violent(t)[0])
+
+
+@pytest.mark.parametrize('command', ['accuracy', 'scale', 'stress', 'hanging'])
+def test_a_plots_folder_that_cannot_be_written_is_refused_before_measuring(tmp_path, command):
+    """
+    --plots naming a file, or a folder that cannot be made, is refused at once (exit 2).
+
+    The plots are written at the end: before, a run measured for its whole length (30
+    minutes for the full articulated stress bench), then died on them with a traceback
+    and printed no JSON.
+    """
+    a_file = tmp_path / 'plots.png'
+    a_file.write_bytes(b'not a folder')
+    for plots, why in ((a_file, 'is a file'), (a_file / 'sub', 'cannot make it')):
+        out = subprocess.run([BENCH, command, '--json', '--plots', str(plots)],
+                             capture_output=True, text=True, timeout=60)
+        assert out.returncode == 2, out.stderr[-2000:]
+        assert why in out.stderr and 'Traceback' not in out.stderr, out.stderr[-2000:]
+        assert out.stdout == ''
