@@ -16,6 +16,7 @@ prints one JSON object.
 import argparse
 from collections import defaultdict
 import json
+import math
 import struct
 import sys
 import threading
@@ -225,6 +226,9 @@ def measure(namespaces, duration, warmup=2.0, meshcat_url=None, context=None, to
         probe.recording = False
         report = probe.report(namespaces, duration)
         report['connect_s'] = connect_s
+        # topics that never delivered a message (no node, a wrong namespace, a topic off)
+        report['silent'] = sorted('%s%s' % (ns.rstrip('/') + '/', topic)
+                                  for ns, topic in wanted - probe.seen)
         if watcher is not None:
             report['meshcat'] = {'frames': len(watcher.frames), 'rate_hz': watcher.rate(),
                                  'error': watcher.error}
@@ -236,21 +240,34 @@ def measure(namespaces, duration, warmup=2.0, meshcat_url=None, context=None, to
         node.destroy_node()
 
 
+def seconds(text):
+    """argparse type: a finite, non-negative number of seconds (at most a day)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError('%r is not a number of seconds' % text) from None
+    if not (math.isfinite(value) and 0.0 <= value <= 86400.0):
+        raise argparse.ArgumentTypeError('%r s: give 0 to 86400 s' % text)
+    return value
+
+
 def main(argv=None):
-    """Measure and print one JSON object."""
+    """Measure and print one JSON object; exit 1 when a topic delivered no message at all."""
     import rclpy
     parser = argparse.ArgumentParser(prog='hair_sim.bench.probe', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--namespaces', nargs='+', default=['/'])
-    parser.add_argument('--duration', type=float, default=10.0)
-    parser.add_argument('--warmup', type=float, default=2.0,
+    parser.add_argument('--duration', type=seconds, default=10.0)
+    parser.add_argument('--warmup', type=seconds, default=2.0,
                         help='s to wait after the first message of every topic')
-    parser.add_argument('--connect-timeout', type=float, default=10.0,
+    parser.add_argument('--connect-timeout', type=seconds, default=10.0,
                         help='s to wait at most for the first messages')
     parser.add_argument('--meshcat-url', default=None)
     parser.add_argument('--topics', nargs='*', default=None,
                         choices=[t[0] for t in HAIR_TOPICS], help='default: all')
     args = parser.parse_args(argv)
+    if args.duration <= 0.0:
+        parser.error('--duration must be more than 0 s')
     rclpy.init()
     try:
         report = measure(args.namespaces, args.duration, args.warmup, args.meshcat_url,
@@ -258,6 +275,11 @@ def main(argv=None):
     finally:
         rclpy.try_shutdown()
     print(json.dumps(report), flush=True)
+    if report['silent']:
+        print('hair_sim.bench.probe: no message at all on %s (is the node running, in that '
+              'namespace, with the topic on?)' % ', '.join(report['silent']),
+              file=sys.stderr, flush=True)
+        return 1
     return 0
 
 

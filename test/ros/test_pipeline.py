@@ -232,3 +232,27 @@ def test_a_stop_while_publishing_is_a_clean_exit(program):
         out, _ = proc.communicate(timeout=30)
         assert proc.returncode == 0, out[-3000:]
         assert 'Traceback' not in out and 'unexpected' not in out, out[-3000:]
+
+
+def test_the_probe_says_when_a_topic_is_silent_and_refuses_a_window_it_cannot_take():
+    """
+    With nothing publishing, the probe still prints its JSON but exits 1 naming the topic.
+
+    Before, it exited 0 with rate 0 after its connect timeout, and took --duration nan
+    or -1, printing NaN, which is not JSON.
+    """
+    probe = [sys.executable, '-m', 'hair_sim.bench.probe']
+    out = subprocess.run(probe + ['--namespaces', '/nobody_here', '--topics', 'hair_state',
+                                  '--duration', '0.5', '--warmup', '0',
+                                  '--connect-timeout', '1'],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 1, out.stderr[-2000:]
+    assert '/nobody_here/hair_state' in out.stderr, out.stderr[-2000:]
+    report = json.loads(out.stdout)
+    assert report['silent'] == ['/nobody_here/hair_state']
+    assert report['/nobody_here']['hair_state']['messages'] == 0
+    for bad in ('nan', '-1', '0', 'inf'):
+        out = subprocess.run(probe + ['--duration', bad], capture_output=True, text=True,
+                             timeout=60)
+        assert out.returncode == 2 and '--duration' in out.stderr, out.stderr[-2000:]
+        assert out.stdout == ''
