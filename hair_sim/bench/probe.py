@@ -241,7 +241,7 @@ def measure(namespaces, duration, warmup=2.0, meshcat_url=None, context=None, to
 
 
 def seconds(text):
-    """argparse type: a finite, non-negative number of seconds (at most a day)."""
+    """Return a finite, non-negative number of seconds, at most a day (an argparse type)."""
     try:
         value = float(text)
     except ValueError:
