@@ -16,13 +16,14 @@ prints one JSON object.
 import argparse
 from collections import defaultdict
 import json
-import math
 import struct
 import sys
 import threading
 import time
 
 import numpy as np
+
+from hair_sim.arguments import seconds
 
 # (topic, message type, offset of header.stamp in the CDR payload)
 HAIR_TOPICS = (('hair_mesh', 'hair_sim_msgs/msg/HairMesh', 4),
@@ -238,17 +239,6 @@ def measure(namespaces, duration, warmup=2.0, meshcat_url=None, context=None, to
             watcher.stop()
         ex.shutdown()
         node.destroy_node()
-
-
-def seconds(text):
-    """Return a finite, non-negative number of seconds, at most a day (an argparse type)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError('%r is not a number of seconds' % text) from None
-    if not (math.isfinite(value) and 0.0 <= value <= 86400.0):
-        raise argparse.ArgumentTypeError('%r s: give 0 to 86400 s' % text)
-    return value
 
 
 def main(argv=None):

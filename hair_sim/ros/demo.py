@@ -19,6 +19,8 @@ import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
+from hair_sim.arguments import seconds
+
 
 def split_ros_args(argv):
     """Return (the demo's own arguments, the ROS arguments from the first --ros-args on)."""
@@ -42,7 +44,8 @@ def main(argv=None):
     own, ros_args = split_ros_args(argv)
     parser = argparse.ArgumentParser(prog='hair_sim_demo', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('--duration', type=float, default=0.0, help='seconds (0: until Ctrl-C)')
+    parser.add_argument('--duration', type=seconds, default=0.0,
+                        help='seconds (0: until Ctrl-C)')
     parser.add_argument('--style', default='thesis_long', help='hairstyle name')
     parser.add_argument('--no-meshcat', action='store_true', help='ROS topics only')
     args = parser.parse_args(own)

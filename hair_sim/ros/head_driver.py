@@ -21,6 +21,7 @@ from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from rclpy.utilities import remove_ros_args
 
+from hair_sim.arguments import rate_hz
 from hair_sim.bench.scenarios import demo as demo_motion
 
 
@@ -72,7 +73,7 @@ def main(argv=None):
     argv = sys.argv if argv is None else argv
     parser = argparse.ArgumentParser(prog='hair_sim_head_driver', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('--rate', type=float, default=100.0, help='poses per second')
+    parser.add_argument('--rate', type=rate_hz, default=100.0, help='poses per second')
     parser.add_argument('--frame', default='world', help='frame id of poses and wind')
     parser.add_argument('--parent-pid', type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args(remove_ros_args(argv)[1:])

@@ -256,3 +256,23 @@ def test_the_probe_says_when_a_topic_is_silent_and_refuses_a_window_it_cannot_ta
                              timeout=60)
         assert out.returncode == 2 and '--duration' in out.stderr, out.stderr[-2000:]
         assert out.stdout == ''
+
+
+@pytest.mark.parametrize('program, option, values', [
+    (['-m', 'hair_sim.ros.head_driver'], '--rate', ['0', 'nan', '-5', '1e9', 'fast']),
+    (['-m', 'hair_sim.ros.demo'], '--duration', ['nan', '-1', 'inf', 'x']),
+])
+def test_the_programs_refuse_numbers_they_cannot_use_before_they_start(program, option,
+                                                                       values):
+    """
+    A rate or a duration that is not a finite, sane number is refused (exit 2), by name.
+
+    Before, the head driver died with a ZeroDivisionError at --rate 0, a ValueError at
+    nan and an RCLError at -5, and at 1e9 spun a zero-period timer; the demo ran for ever
+    at --duration nan and stopped at once at -1.
+    """
+    for value in values:
+        out = subprocess.run([sys.executable] + program + [option, value],
+                             capture_output=True, text=True, timeout=60)
+        assert out.returncode == 2, (value, out.stderr[-2000:])
+        assert option in out.stderr and 'Traceback' not in out.stderr, out.stderr[-2000:]
