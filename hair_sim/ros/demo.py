@@ -10,6 +10,7 @@ on a single-threaded executor. Everything goes through real topics. ROS argument
 """
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -52,7 +53,9 @@ def main(argv=None):
     from hair_sim.ros.node import HairSimNode
 
     # the demo's choices first, so that the user's --ros-args -p ... override them
-    node_args = ['hair_sim_demo', '--ros-args', '-p', 'hairstyle:=%s' % args.style,
+    # (the name as a YAML string: rcl reads a -p value as YAML, and '', '[1, 2]' or 'a: b'
+    # failed in rcl's argument parser with its traceback)
+    node_args = ['hair_sim_demo', '--ros-args', '-p', 'hairstyle:=%s' % json.dumps(args.style),
                  '-p', 'meshcat.enabled:=%s' % ('false' if args.no_meshcat else 'true')]
     node_args += ros_args
     rclpy.init(args=node_args)

@@ -276,3 +276,19 @@ def test_the_programs_refuse_numbers_they_cannot_use_before_they_start(program, 
                              capture_output=True, text=True, timeout=60)
         assert out.returncode == 2, (value, out.stderr[-2000:])
         assert option in out.stderr and 'Traceback' not in out.stderr, out.stderr[-2000:]
+
+
+@pytest.mark.parametrize('style', ['', '[1, 2]', 'a: b', 'no_such_style'])
+def test_the_demo_names_a_style_it_cannot_load(style):
+    """
+    `hair_sim_demo --style X` with no such style exits 1 with one line naming it.
+
+    Before, an empty name or one that reads as YAML ('[1, 2]', 'a: b') ended in rcl's
+    argument parser with a traceback: the name went into `-p hairstyle:=X` unquoted.
+    """
+    out = subprocess.run([sys.executable, '-m', 'hair_sim.ros.demo', '--style', style,
+                          '--no-meshcat', '--duration', '5'],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 1, out.stderr[-2000:]
+    assert 'Traceback' not in out.stderr and 'hair_sim_demo: ' in out.stderr, out.stderr
+    assert ('empty' if style == '' else style) in out.stderr, out.stderr[-2000:]
