@@ -58,7 +58,11 @@ def main(argv=None):
     node_args = ['hair_sim_demo', '--ros-args', '-p', 'hairstyle:=%s' % json.dumps(args.style),
                  '-p', 'meshcat.enabled:=%s' % ('false' if args.no_meshcat else 'true')]
     node_args += ros_args
-    rclpy.init(args=node_args)
+    try:
+        rclpy.init(args=node_args)
+    except RuntimeError as exc:     # rcl cannot parse them: a params file missing, not YAML
+        print('hair_sim_demo: %s' % exc, file=sys.stderr)
+        return 1
     node = driver = None
     code = 0
     try:

@@ -76,8 +76,13 @@ def main(argv=None):
     parser.add_argument('--rate', type=rate_hz, default=100.0, help='poses per second')
     parser.add_argument('--frame', default='world', help='frame id of poses and wind')
     parser.add_argument('--parent-pid', type=int, default=None, help=argparse.SUPPRESS)
-    args = parser.parse_args(remove_ros_args(argv)[1:])
-    rclpy.init(args=argv)
+    try:
+        own = remove_ros_args(argv)[1:]
+        args = parser.parse_args(own)
+        rclpy.init(args=argv)
+    except RuntimeError as exc:     # rcl cannot parse them: a params file missing, not YAML
+        print('hair_sim_head_driver: %s' % exc, file=sys.stderr)
+        return 1
     try:
         rclpy.spin(HeadDriver(args.rate, args.frame, args.parent_pid))
     except (KeyboardInterrupt, ExternalShutdownException, SystemExit):

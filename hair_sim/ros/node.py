@@ -839,7 +839,10 @@ def check_own_arguments(argv):
     A node takes its settings as --ros-args -p name:=value: anything else (hair_sim_demo's
     --style given to the node) would be ignored without a word.
     """
-    own = remove_ros_args(list(argv))[1:]
+    try:
+        own = remove_ros_args(list(argv))[1:]
+    except RuntimeError as exc:     # rcl cannot parse them: a params file missing, not YAML
+        raise SystemExit('hair_sim_node: %s' % exc) from None
     if own:
         parser = argparse.ArgumentParser(
             prog='hair_sim_node', description=__doc__.strip().splitlines()[0],

@@ -292,3 +292,21 @@ def test_the_demo_names_a_style_it_cannot_load(style):
     assert out.returncode == 1, out.stderr[-2000:]
     assert 'Traceback' not in out.stderr and 'hair_sim_demo: ' in out.stderr, out.stderr
     assert ('empty' if style == '' else style) in out.stderr, out.stderr[-2000:]
+
+
+@pytest.mark.parametrize('program', [['-m', 'hair_sim.ros.node'], ['-m', 'hair_sim.ros.demo'],
+                                     ['-m', 'hair_sim.ros.head_driver']])
+def test_a_params_file_rcl_cannot_read_is_named_in_one_line(tmp_path, program):
+    """
+    --params-file naming a missing file, or one that is not YAML: exit 1, one line, no traceback.
+
+    Before, rcl's parse error reached the user as an RCLInvalidROSArgsError traceback.
+    """
+    broken = tmp_path / 'broken.yaml'
+    broken.write_text('hair_sim:\n  ros__parameters:\n    publish_rate: [1, 2\n')
+    for params in (tmp_path / 'missing.yaml', broken):
+        out = subprocess.run([sys.executable] + program + ['--ros-args', '--params-file',
+                                                           str(params)],
+                             capture_output=True, text=True, timeout=60)
+        assert out.returncode == 1, out.stderr[-2000:]
+        assert 'Traceback' not in out.stderr and str(params) in out.stderr, out.stderr[-2000:]
