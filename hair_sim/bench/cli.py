@@ -57,8 +57,9 @@ def main(argv=None):
     parser.add_argument('--model', choices=['anjyo', 'articulated'], default='anjyo',
                         help='the strand model the cases run (stress and settle only)')
     args = parser.parse_args(argv)
-    if args.command in PLOTTING and plots_folder_problem(args.plots):
-        parser.error(plots_folder_problem(args.plots))
+    why = plots_folder_problem(args.plots) if args.command in PLOTTING else None
+    if why:
+        parser.error(why)
     os.environ.setdefault('NUMBA_NUM_THREADS', '1')
     if args.command == 'accuracy':
         from hair_sim.bench import accuracy

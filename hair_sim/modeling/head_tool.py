@@ -36,8 +36,9 @@ def fit_command(args):
     name = os.path.splitext(os.path.basename(out))[0]
     glb = os.path.join(os.path.dirname(out), name + '_display.glb')
     for path in (out, glb):
-        if unwritable_file(path):
-            raise HairstyleError(unwritable_file(path))
+        why = unwritable_file(path)
+        if why:
+            raise HairstyleError(why)
         if os.path.exists(path) and not args.force:
             raise HairstyleError('%s exists (use --force to replace it)' % path)
     t0 = time.perf_counter()

@@ -136,8 +136,9 @@ def reroot_file(style_path, head_path, out=None, force=False):
         out = os.path.join(os.path.dirname(os.path.abspath(head_path)),
                            '%s_on_%s.yaml' % (style.name, head.name))
     out = os.path.abspath(out)
-    if unwritable_file(out):
-        raise HairstyleError(unwritable_file(out))
+    why = unwritable_file(out)
+    if why:
+        raise HairstyleError(why)
     if os.path.exists(out) and not force:
         raise HairstyleError('%s exists (use --force to replace it)' % out)
     ref = os.path.relpath(os.path.abspath(head_path), os.path.dirname(out))
