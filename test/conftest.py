@@ -37,3 +37,19 @@ def node_env(tmp_path):
         yield run.context, run.executor, run.node, run.client
     finally:
         run.close()
+
+
+# Tests that start nodes, servers or subprocesses of the node and measure rates and
+# latencies from outside run alone: `make test` runs them one at a time after the others,
+# which share the machine's two cores (pytest-xdist, a file to a worker).
+SERIAL_FOLDERS = ('ros', 'robustness', 'sinks')
+SERIAL_FILES = ('test_messages.py',)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark the tests of SERIAL_FOLDERS and SERIAL_FILES `serial`."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    for item in items:
+        where = os.path.relpath(str(item.path), here)
+        if where.split(os.sep)[0] in SERIAL_FOLDERS or where in SERIAL_FILES:
+            item.add_marker(pytest.mark.serial)
