@@ -51,10 +51,13 @@ $(STAMP_WARM): $(STAMP_PKG) $(STAMP_MSGS) $(PY_SRCS)
 # Two passes: the tests that measure no rate share the two cores (a file to a worker, so a
 # module's fixture runs once), then those of test/conftest.py's SERIAL_FOLDERS, which start
 # nodes and time them from outside, one at a time (5.5 min alone; the whole suite took 11
-# min one at a time, 9 this way). `pytest test` still runs everything in one process.
+# min one at a time, 9 this way). The second pass runs even when the first failed, so one
+# run reports every failure; the target fails if either did. `pytest test` still runs
+# everything in one process.
 test: setup
-	$(PY) -m pytest -n 2 --dist loadscope -m "not serial" test
-	$(PY) -m pytest -m serial test
+	$(PY) -m pytest -n 2 --dist loadscope -m "not serial" test; shared=$$?; \
+	$(PY) -m pytest -m serial test; alone=$$?; \
+	exit $$(( shared != 0 ? shared : alone ))
 
 # The node with the sample style, a scripted head and wind, in meshcat: prints the URL.
 demo: setup
