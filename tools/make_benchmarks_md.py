@@ -94,12 +94,29 @@ def targets(r180, r1000):
     return 'Targets: %s.' % '; '.join(out)
 
 
+def one_step_sentence(one_step, r180):
+    """Return a sentence on the articulated model at one step per frame, if it was run."""
+    o180 = next((r for r in one_step if r['strips'] == 180), None)
+    o1000 = next((r for r in one_step if r['strips'] == 1000), None)
+    if o180 is None:
+        return ''
+    at_1000 = ''
+    if o1000:
+        at_1000 = ' and 1000 at %.0f (%.0f)' % (
+            o1000['end_to_end_fps'], o1000['end_to_end_fps_mean'])
+    return (' At one step per 60 Hz frame (`sim_rate: 60.0`) it runs 180 strips at %.0f fps '
+            'end to end (%.0f with the mean physics of a frame)%s: its frame\'s physics costs '
+            '%.1fx the thesis model\'s four steps (means of 2 s of frames).'
+            % (o180['end_to_end_fps'], o180['end_to_end_fps_mean'], at_1000,
+               o180['physics_frame_ms_mean'] / r180['physics_frame_ms_mean']))
+
+
 def same_machine_before(anjyo, articulated):
     """
     Return a sentence comparing this run with doc/bench/scale_before.json, if there is one.
 
     That file is the scale bench of the code before a change, run on the same machine
-    right before this run (its 'commit' names the code): machines of this kind differ by a
+    back to back with this run (its 'commit' names the code): machines of this kind differ by a
     third from one session to the next, so only a same-machine pair shows a change.
     """
     path = os.path.join(BENCH, 'scale_before.json')
@@ -117,7 +134,7 @@ def same_machine_before(anjyo, articulated):
                 out.append('%s %d strips %.0f -> %.0f fps (step %.2f -> %.2f ms)'
                            % (model, n, a['end_to_end_fps'], b['end_to_end_fps'],
                               a['physics_step_ms'], b['physics_step_ms']))
-    return ('The same machine with the code of %s (%s), run right before this one: %s.'
+    return ('The same machine with the code of %s (%s), run back to back with this one: %s.'
             % (before.get('commit', '?'), before.get('what', 'before'), '; '.join(out))
             if out else '')
 
@@ -554,23 +571,36 @@ def main():
                  cost_ratio(acc, 'hairstyle', 1 / 240), cost_ratio(acc, 'hairstyle', 1 / 60)),
               '']
     anjyo = [r for r in scale if r.get('model', 'anjyo') == 'anjyo']
-    articulated = [r for r in scale if r.get('model') == 'articulated']
+    articulated = [r for r in scale if r.get('model') == 'articulated'
+                   and r.get('substeps_per_frame', 4) == 4]
+    one_step = [r for r in scale if r.get('model') == 'articulated'
+                and r.get('substeps_per_frame') == 1]
     parts += ['## Scale against the thesis (`hair_sim_bench scale --json`)', '',
-              'Styles are thesis_long refined to n strips; 4 solver steps per 60 Hz frame; one '
-              'core. End to end = what the node\'s own thread does for a frame: 4 physics '
-              'steps, the U-shape mesh, the hair_mesh bytes (vertices only), and the marker '
-              'bytes at the shipped `marker_rate` (10 Hz: one frame in six; the last column '
-              'counts them in every frame). meshcat encodes on its own thread.', '']
+              'Styles are thesis_long refined to n strips, under the demo\'s head motion and '
+              'a gusty 2 m/s wind; 4 solver steps per 60 Hz frame (the default `sim_rate`, '
+              '240 Hz) unless marked; one core. End to end = what the node\'s own thread '
+              'does for a frame: the physics steps, the U-shape mesh, the hair_mesh bytes '
+              '(vertices only), and the marker bytes at the shipped `marker_rate` (10 Hz: '
+              'one frame in six; the column "markers every frame" counts them in every '
+              'frame). The step is the median step; "fps, mean physics" takes the mean of 2 s '
+              'of frames instead (the articulated model\'s substeps come in bursts where a '
+              'gust whips a tip). meshcat encodes on its own thread.', '']
     cols = [('strips', 'strips'), ('simulated_vertices', 'sim. vertices'),
             ('rendered_vertices', 'drawn vertices'), ('physics_step_ms', 'step ms'),
             ('frame_ms', 'U-shape ms'), ('hair_mesh_ms', 'hair_mesh ms'),
             ('marker_bytes_ms', 'markers ms'), ('meshcat_encode_ms', 'meshcat ms'),
             ('end_to_end_fps', 'fps end to end'),
             ('end_to_end_fps_markers_every_frame', 'fps, markers every frame'),
+            ('end_to_end_fps_mean', 'fps, mean physics'),
             ('thesis_fps', 'thesis fps (2003)')]
     parts += ['### Thesis model (`anjyo`, the default)', '', table(anjyo, cols), '']
     if articulated:
         parts += ['### Articulated model', '', table(articulated, cols), '']
+    if one_step:
+        parts += ['### Articulated model at one step per 60 Hz frame (`sim_rate: 60.0`)', '',
+                  'Stable there by design (a segment that would turn more than 0.05 rad '
+                  'takes substeps); "step ms" is then a whole frame\'s physics.', '',
+                  table(one_step, cols), '']
     parts += ['![](doc/bench/scale.png)', '']
     r180 = next(r for r in anjyo if r['strips'] == 180)
     r1000 = next((r for r in anjyo if r['strips'] == 1000), None)
@@ -594,8 +624,10 @@ def main():
                  targets(r180, r1000), seg_us, 1e3 * r180['frame_ms'] / r180['strips'],
                  ('At 1000 strips: %.0f fps. ' % r1000['end_to_end_fps']) if r1000 else '',
                  ('The articulated model\'s step costs %.1fx the thesis model\'s at 180 strips '
-                  '(%.0f fps end to end).' % (c180['physics_step_ms'] / r180['physics_step_ms'],
-                                              c180['end_to_end_fps'])) if c180 else '',
+                  '(%.0f fps end to end).%s' % (
+                      c180['physics_step_ms'] / r180['physics_step_ms'],
+                      c180['end_to_end_fps'], one_step_sentence(one_step, r180)))
+                 if c180 else '',
                  same_machine_before(anjyo, articulated)), '']
     parts += ['### Message sizes: hair_mesh before and after the topology split', '',
               'Before, every HairMesh carried the vertices, UVs, triangles, strip offsets '

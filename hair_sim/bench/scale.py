@@ -5,8 +5,10 @@ Styles of 20 .. 2000 strips are the sample style refined to that many strips (ph
 LOD), each run with both strand models. Per row: simulated and rendered vertices, physics
 step, frame (tessellation + U-shape), the hair_mesh message (vertices only; the topology
 goes once per style), marker bytes and meshcat encoding in ms, message sizes before and
-after the topology split, and end-to-end frames per second with the default substeps per
-60 Hz frame, beside the thesis' frames per second.
+after the topology split, and end-to-end frames per second beside the thesis' frames per
+second. Both models run at the default 4 solver steps per 60 Hz frame (`sim_rate` 240);
+the articulated model also at one step per frame (`sim_rate` 60), where it is stable by
+design and takes its own substeps where a segment would turn too far.
 """
 
 import time
@@ -25,7 +27,9 @@ from hair_sim.sinks.mesh_msg import hair_mesh_cdr, hair_mesh_topology_cdr
 THESIS_FPS = {20: 81, 52: 79, 84: 67, 116: 59, 148: 46, 180: 41}
 STRIPS_FULL = [20, 52, 84, 116, 148, 180, 500, 1000, 2000]
 STRIPS_QUICK = [20, 180]
-MODELS = ('anjyo', 'articulated')
+# (model, solver steps per 60 Hz frame): the default sim_rate for both, and the articulated
+# model at one step per frame
+CONFIGS = (('anjyo', SUBSTEPS), ('articulated', SUBSTEPS), ('articulated', 1))
 FRAME_RATE = 60.0
 MARKER_RATE = 10.0             # the node's shipped marker_rate: markers in 1 frame of 6
 TEXTURE_EVERY = 30             # before the split, HairMesh carried the PNG every 30th message
@@ -62,7 +66,7 @@ def median_ms(fn, repeats):
     return 1e3 * float(np.median(times))
 
 
-def demo_scene(n_strips, model='anjyo'):
+def demo_scene(n_strips, model='anjyo', dt=DEFAULT_DT):
     """Return (simulator, step) of thesis_long with n_strips under the demo's head and wind."""
     style = load_hairstyle(paths.shipped_style('thesis_long')).with_strip_count(n_strips)
     sim = HairSimulator(style, model=model)
@@ -71,19 +75,34 @@ def demo_scene(n_strips, model='anjyo'):
     clock = [0.0]
 
     def step():
-        clock[0] += DEFAULT_DT
+        clock[0] += dt
         sim.set_head_pose(clock[0], *demo(clock[0]))
-        sim.step(DEFAULT_DT)
+        sim.step(dt)
 
     for _ in range(20):
         step()
     return sim, step
 
 
-def row(n_strips, repeats, model='anjyo'):
-    """Measure one style size with one strand model."""
-    sim, step = demo_scene(n_strips, model)
+def physics_frame_ms(step, steps, frames):
+    """Return the mean wall ms of `frames` 60 Hz frames of `steps` solver steps each."""
+    t0 = time.perf_counter()
+    for _ in range(frames * steps):
+        step()
+    return 1e3 * (time.perf_counter() - t0) / frames
+
+
+def row(n_strips, repeats, model='anjyo', steps=SUBSTEPS):
+    """
+    Measure one style size with one strand model at `steps` solver steps per 60 Hz frame.
+
+    physics_step_ms is the median step (end to end counts `steps` of it); the articulated
+    model's substeps come in bursts where the gusts whip a tip, so the mean over 2 s of
+    frames is reported too (physics_frame_ms_mean, end_to_end_fps_mean).
+    """
+    sim, step = demo_scene(n_strips, model, 1.0 / (FRAME_RATE * steps))
     step_ms = median_ms(step, repeats * SUBSTEPS)
+    frame_mean_ms = physics_frame_ms(step, steps, int(2 * FRAME_RATE))
     renderer = HairRenderer.for_simulator(sim)
     R, p = sim.head_pose
     # renderer.mesh, not mesh_of: that reuses the mesh of an unchanged state
@@ -105,26 +124,30 @@ def row(n_strips, repeats, model='anjyo'):
 
     marker_ms = median_ms(markers, repeats)
     meshcat_ms = median_ms(lambda: meshcat_encode(mesh), max(3, repeats // 3))
-    frame_ms = SUBSTEPS * step_ms + mesh_ms + hair_mesh_ms + marker_ms * MARKER_RATE / FRAME_RATE
-    every_frame_ms = SUBSTEPS * step_ms + mesh_ms + hair_mesh_ms + marker_ms
+    drawing_ms = mesh_ms + hair_mesh_ms + marker_ms * MARKER_RATE / FRAME_RATE
+    frame_ms = steps * step_ms + drawing_ms
+    every_frame_ms = steps * step_ms + mesh_ms + hair_mesh_ms + marker_ms
     mesh_bytes = len(hair_mesh())
     return {'model': model, 'strips': n_strips,
             'simulated_vertices': int(sim.pos.shape[0] * sim.pos.shape[1]),
             'rendered_vertices': int(len(mesh.vertices)), 'physics_step_ms': step_ms,
-            'substeps_per_frame': SUBSTEPS, 'frame_ms': mesh_ms, 'hair_mesh_ms': hair_mesh_ms,
+            'substeps_per_frame': steps, 'sim_rate': FRAME_RATE * steps,
+            'physics_frame_ms_mean': frame_mean_ms, 'frame_ms': mesh_ms,
+            'hair_mesh_ms': hair_mesh_ms,
             'hair_mesh_bytes': mesh_bytes, 'hair_mesh_topology_bytes': topology_bytes,
             'hair_mesh_bytes_before_split': bytes_before_split(mesh_bytes, topology,
                                                                topology_bytes),
             'marker_bytes_ms': marker_ms, 'marker_bytes': len(markers()),
             'meshcat_encode_ms': meshcat_ms, 'end_to_end_ms': frame_ms,
             'end_to_end_fps': 1e3 / frame_ms,
+            'end_to_end_fps_mean': 1e3 / (frame_mean_ms + drawing_ms),
             'end_to_end_fps_markers_every_frame': 1e3 / every_frame_ms,
             'thesis_fps': THESIS_FPS.get(n_strips)}
 
 
 def run(quick=False, plot_dir=None):
     """
-    Measure every size with both models.
+    Measure every size with both models (CONFIGS).
 
     The meshcat encoding runs on its own thread in the node, so end to end counts what the
     node's own thread does for a 60 Hz frame: the physics substeps, the U-shape, the
@@ -132,8 +155,9 @@ def run(quick=False, plot_dir=None):
     end_to_end_fps_markers_every_frame counts them in every frame).
     """
     sizes = STRIPS_QUICK if quick else STRIPS_FULL
-    records = [row(n, 5 if quick else 30, model)
-               for model, n in progress([(m, n) for m in MODELS for n in sizes], 'scale')]
+    records = [row(n, 5 if quick else 30, model, steps)
+               for model, steps, n in progress([(m, k, n) for m, k in CONFIGS for n in sizes],
+                                               'scale')]
     if plot_dir:
         plot(records, plot_dir)
     return records
@@ -145,10 +169,11 @@ def plot(records, plot_dir):
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
-    for model, style in (('anjyo', 'o-'), ('articulated', 'v-')):
-        rs = [r for r in records if r['model'] == model]
+    for (model, steps), style in zip(CONFIGS, ('o-', 'v-', '^-')):
+        rs = [r for r in records if r['model'] == model and r['substeps_per_frame'] == steps]
         a.loglog([r['strips'] for r in rs], [r['end_to_end_fps'] for r in rs], style,
-                 label='hair_sim end to end, %s' % model)
+                 label='hair_sim end to end, %s, %d step%s a frame'
+                 % (model, steps, '' if steps == 1 else 's'))
     t = [r for r in records if r['thesis_fps'] and r['model'] == 'anjyo']
     a.loglog([r['strips'] for r in t], [r['thesis_fps'] for r in t], 's--',
              label='thesis table 5.1 (2003)')
@@ -156,7 +181,7 @@ def plot(records, plot_dir):
     a.set_xlabel('strips')
     a.set_ylabel('frames per second')
     a.legend(fontsize=7)
-    rs = [r for r in records if r['model'] == 'anjyo']
+    rs = [r for r in records if r['model'] == 'anjyo' and r['substeps_per_frame'] == SUBSTEPS]
     n = [r['strips'] for r in rs]
     series = (('physics_step_ms', 'physics step'), ('frame_ms', 'tessellation + U-shape'),
               ('hair_mesh_ms', 'hair_mesh bytes'), ('marker_bytes_ms', 'marker bytes'),
@@ -164,9 +189,12 @@ def plot(records, plot_dir):
               ('end_to_end_ms', 'end to end (%d steps)' % rs[0]['substeps_per_frame']))
     for key, label in series:
         b.loglog(n, [r[key] for r in rs], 'o-', label=label)
-    ra = [r for r in records if r['model'] == 'articulated']
-    b.loglog([r['strips'] for r in ra], [r['physics_step_ms'] for r in ra], 'v--',
-             label='physics step, articulated')
+    for steps, style in ((SUBSTEPS, 'v--'), (1, '^--')):
+        ra = [r for r in records
+              if r['model'] == 'articulated' and r['substeps_per_frame'] == steps]
+        b.loglog([r['strips'] for r in ra], [r['physics_frame_ms_mean'] for r in ra], style,
+                 label='physics of a frame (mean), articulated, %d step%s'
+                 % (steps, '' if steps == 1 else 's'))
     b.set_xlabel('strips')
     b.set_ylabel('ms (anjyo unless marked)')
     b.legend(fontsize=7)
