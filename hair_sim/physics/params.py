@@ -41,6 +41,54 @@ RANGES = {
 }
 INTEGRATORS = ('explicit', 'implicit')
 MODELS = ('anjyo', 'articulated')
+# name: what it means, in one line (the node's parameter descriptors and --help say it)
+DESCRIPTIONS = {
+    'hair_density': 'density of a hair fibre (kg/m^3)',
+    'hair_radius': 'radius of a hair fibre (m)',
+    'hairs_per_strand': 'real hairs one simulated strand stands for (its mass and stiffness)',
+    'youngs_modulus': 'Young\'s modulus of a hair fibre (Pa)',
+    'stiffness_scale': 'bending stiffness, times the estimate from youngs_modulus and '
+                       'hair_radius (raise it for gelled or styled hair)',
+    'model': 'strand model: anjyo (the thesis, eqs. 1-6) or articulated (an exact chain of '
+             'rods; stable at sim_rate 60)',
+    'root_stiffness_scale': 'the follicle joint\'s stiffness, times the others\' '
+                            '(articulated model; very large: clamped)',
+    'damping': 'damping rate of the strands\' swing (1/s)',
+    'air_damping': 'drag against still air, -air_damping m v on each segment (1/s; apart from '
+                   'the wind\'s drag)',
+    'gravity': 'gravity along -z of the world frame (m/s^2)',
+    'gravity_compensation': 'hold the modeled style under gravity with the head upright '
+                            '(false: it sags first)',
+    'drag_coefficient': 'wind drag coefficient of a strand (a cylinder: about 1.2)',
+    'drag_width': 'width of a strand\'s bundle the wind acts on (m)',
+    'air_density': 'density of the air (kg/m^3)',
+    'collision_stiffness': 'stiffness of the reaction constraint, eq. 8 (N/m per m of strand)',
+    'collision_damping': 'damping of the reaction constraint, eq. 8 (N s/m per m of strand)',
+    'contact_friction': 'Coulomb friction between hair and the head\'s spheres (articulated '
+                        'model; 0: frictionless)',
+    'neighbor_stiffness': 'springs between facing strands of neighbouring strips, type 1 of '
+                          'thesis 5.2 (N/m per m)',
+    'wall_stiffness': 'springs from a vertex to its neighbour\'s wall, type 2 of thesis 5.2 '
+                      '(N/m per m)',
+    'wall_distance': 'type 2 springs act within this distance of the neighbour\'s wall (m)',
+    'scalp_stiffness': 'springs from a vertex to its scalp projection, type 3 of thesis 5.2 '
+                       '(N/m per m)',
+    'scalp_spring_reach': 'type 3 springs hold vertices resting within this of the scalp (m)',
+    'inter_strip': 'the springs between strips of thesis 5.2 on or off (fig. 5.1)',
+    'collisions': 'collisions with the head\'s and body\'s spheres on or off',
+    'integrator': 'anjyo model\'s integrator: explicit (thesis eq. 6) or implicit',
+    'max_wind_speed': 'wind above this is clamped along its direction (m/s)',
+    'max_head_speed': 'a head jumping over 0.25 m faster than this is a teleport: the hair '
+                      'is carried with it (m/s)',
+    'max_head_angular_speed': 'a head turning over 0.6 rad faster than this is a teleport: '
+                              'the hair is carried with it (rad/s)',
+    'max_head_acceleration': 'head accelerations are clamped to this (m/s^2)',
+    'motion_smoothing': 'low-pass time constant of the head\'s velocity (s)',
+    'clock_jump_back': 'a pose stamped this much before the last one re-anchors the clock; a '
+                       'smaller step back is dropped (s)',
+    'sleep_tolerance': 'sleep when no vertex moves more than this for sleep_delay (m)',
+    'sleep_delay': 'sleep when no vertex moves more than sleep_tolerance for this long (s)',
+}
 
 
 @dataclass

@@ -2,7 +2,7 @@
 
 from dataclasses import fields
 
-from hair_sim.physics.params import PhysicsParams, RANGES
+from hair_sim.physics.params import DESCRIPTIONS, PhysicsParams, RANGES
 
 PHYSICS = 'physics.'
 
@@ -46,7 +46,7 @@ def physics_parameters():
     out = {}
     defaults = PhysicsParams()
     for f in fields(PhysicsParams):
-        out[PHYSICS + f.name] = (getattr(defaults, f.name), 'PhysicsParams.%s' % f.name,
+        out[PHYSICS + f.name] = (getattr(defaults, f.name), DESCRIPTIONS[f.name],
                                  RANGES.get(f.name))
     return out
 
