@@ -126,6 +126,7 @@ class Probe:
                 rec['refused_total'] = int(d1.get('refused_total', 0))
                 rec['overruns'] = int(d1.get('overruns', 0)) - int(d0.get('overruns', 0))
                 rec['node_latency_ms_p95'] = _float(d1.get('latency_ms_p95'))
+                rec['model'], rec['sim_rate'] = d1.get('model'), _float(d1.get('sim_rate'))
             out[ns] = rec
         out['window_s'] = window
         return out

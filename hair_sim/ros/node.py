@@ -734,7 +734,8 @@ class HairSimNode(Node):
         st.message = 'sleeping' if sim.sleeping else 'simulating'
         values = {'step_time_ms': '%.4f' % (1e3 * sim.last_step_time),
                   'sleeping': str(sim.sleeping), 'strips': str(sim.strips.n_strips),
-                  'hairstyle': sim.style.name, 'sim_time': '%.3f' % sim.time,
+                  'hairstyle': sim.style.name, 'model': sim.params.model,
+                  'sim_rate': '%g' % self._p('sim_rate'), 'sim_time': '%.3f' % sim.time,
                   'min_sin_theta': '%.3f' % sim.min_sin_theta,
                   'scene_version': str(self.scene.version),
                   'builds_pending': str(self.builder.pending),
