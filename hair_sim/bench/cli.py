@@ -14,6 +14,8 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
                                 the frame budget (hair_sim/budget.py)
     hair_sim_bench hanging  [--json] [--quick] [--plots DIR]   the hanging-hair scene:
                                 both models against MuJoCo (make bench-deps)
+    hair_sim_bench style    [--json] [--quick]                 every shipped style in the
+                                demo's gusts: how far from its look, and back after?
 """
 
 import argparse
@@ -50,7 +52,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog='hair_sim_bench', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress', 'settle',
-                                            'node', 'budget', 'hanging'])
+                                            'node', 'budget', 'hanging', 'style'])
     parser.add_argument('--json', action='store_true', help='print JSON on stdout')
     parser.add_argument('--quick', action='store_true', help='a short run (under a minute)')
     parser.add_argument('--plots', default='bench_out', help='directory for PNG plots')
@@ -93,6 +95,9 @@ def main(argv=None):
             print('settle: promised steps where the hair did not always sleep: %s'
                   % ', '.join(cells), file=sys.stderr)
             return 1
+    elif args.command == 'style':
+        from hair_sim.bench import style_keeping
+        emit(style_keeping.run(args.quick), args.json, 'style')
     elif args.command == 'skip':
         from hair_sim.bench import skip
         emit(skip.run(args.quick), args.json, 'skip')

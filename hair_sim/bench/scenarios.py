@@ -41,6 +41,21 @@ def demo(t):
     return np.array([0.0, sway, bob]), quat_from_euler(0.0, pitch, yaw)
 
 
+# s between the demo's wind gusts (hair_sim_head_driver sends one this often)
+GUST_PERIOD = 2.0
+
+
+def demo_gust(k):
+    """
+    Return the demo's k-th gust (k >= 1): (velocity m/s, world frame), turbulence, seed.
+
+    Calm on every third; otherwise 1.5-4 m/s, turning 0.7 rad from one gust to the next.
+    """
+    speed = 0.0 if k % 3 == 0 else 1.5 + 2.5 * abs(math.sin(k))
+    angle = 0.7 * k
+    return np.array([speed * math.cos(angle), speed * math.sin(angle), 0.0]), 0.3, k
+
+
 def quarter_turn(t0, duration=0.3):
     """Return the motion of a 90 degree yaw from t0 over `duration` s (smoothstep), then held."""
     def motion(t):

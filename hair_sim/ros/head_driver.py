@@ -9,7 +9,6 @@ weather source would. Accepts --ros-args (namespace, remaps) like any ROS 2 prog
 """
 
 import argparse
-import math
 import os
 import sys
 
@@ -22,7 +21,7 @@ from rclpy.qos import qos_profile_sensor_data
 from rclpy.utilities import remove_ros_args
 
 from hair_sim.arguments import rate_hz
-from hair_sim.bench.scenarios import demo as demo_motion
+from hair_sim.bench.scenarios import demo as demo_motion, demo_gust, GUST_PERIOD
 
 
 class HeadDriver(Node):
@@ -37,7 +36,7 @@ class HeadDriver(Node):
         self.t0 = self.get_clock().now().nanoseconds * 1e-9
         self.sent = 0
         self.create_timer(1.0 / rate, self._pose)
-        self.create_timer(2.0, self._wind)
+        self.create_timer(GUST_PERIOD, self._wind)
         self._gust = 0
 
     def _pose(self):
@@ -60,11 +59,8 @@ class HeadDriver(Node):
         w = Wind()
         w.header.stamp = self.get_clock().now().to_msg()
         w.header.frame_id = self.frame
-        speed = 0.0 if self._gust % 3 == 0 else 1.5 + 2.5 * abs(math.sin(self._gust))
-        angle = 0.7 * self._gust
-        w.velocity.x, w.velocity.y = speed * math.cos(angle), speed * math.sin(angle)
-        w.turbulence = 0.3
-        w.seed = self._gust
+        velocity, w.turbulence, w.seed = demo_gust(self._gust)
+        w.velocity.x, w.velocity.y, w.velocity.z = map(float, velocity)
         self.wind_pub.publish(w)
 
 

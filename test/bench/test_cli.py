@@ -53,6 +53,25 @@ def test_scale_quick(tmp_path):
     assert os.path.isfile(tmp_path / 'scale.png')
 
 
+def test_style_quick(tmp_path):
+    """
+    A record per model run; the gusts move the hair, and the thesis model comes back.
+
+    The thesis model's hinges pull towards fixed directions, so once the wind stops every
+    strand returns to its style (a bench whose wind never blew would show no excursion).
+    The articulated model's excursion is what the bench reports, not a pass mark.
+    """
+    from hair_sim.bench.style_keeping import RUNS
+    rc, rows = bench('style', tmp_path)
+    assert rc == 0
+    assert [(r['model'], r['dt']) for r in rows] == [(m, dt) for m, dt in RUNS]
+    for r in rows:
+        assert r['tips_off_style_mean_m'] > 0.01, r      # the gusts blew
+        assert r['asleep_after'] and r['retried_steps'] == 0, r
+    anjyo = next(r for r in rows if r['model'] == 'anjyo')
+    assert anjyo['strands_off_style'] == 0 and anjyo['rest_off_style_mean_m'] < 1e-3, anjyo
+
+
 def test_skip_quick(tmp_path):
     """One record per feature and style (culling: every shipped style), work and skip costs."""
     import os

@@ -1,0 +1,81 @@
+"""
+hair_sim_bench style: whether a hairstyle keeps its look in a breeze, and comes back.
+
+Every shipped style, each strand model at its steps (the thesis model at the default
+1/240 s; the articulated model at 1/240 s and at one step per 60 Hz frame), under the
+demo's calm head motion and the gusts hair_sim_head_driver sends (1.5-4 m/s every 2 s,
+calm on every third). Per run: how far the tips are from the style settled under the
+same model (head frame) while the gusts blow, and how many strands rest more than 3 cm
+from it once the wind has stopped and the head has been held upright for 10 s.
+"""
+
+import numpy as np
+
+from hair_sim import load_hairstyle, paths
+from hair_sim.bench.common import progress
+from hair_sim.bench.scenarios import demo, demo_gust, GUST_PERIOD
+from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator
+
+RUNS = (('anjyo', DEFAULT_DT), ('articulated', DEFAULT_DT), ('articulated', 1.0 / 60))
+OFF_STYLE = 0.03        # m: a strand whose tip rests farther than this is off its style
+RIDING = 0.05           # m: a tip this far above its place is blown up
+SETTLE_S = 5.0          # s the style gets to settle under the first pose, still air
+
+
+def settled_tips(style, model, dt):
+    """Return the tips (head frame) of the style settled under demo(0) in still air."""
+    sim = HairSimulator(style, model=model)
+    t = 0.0
+    sim.set_head_pose(t, *demo(0.0))
+    while not sim.sleeping and t < SETTLE_S:
+        t += dt
+        sim.set_head_pose(t, *demo(0.0))
+        sim.step(dt)
+    return sim.positions_in_head_frame()[:, -1].copy()
+
+
+def run_one(style, model, dt, gusty_s, still_s):
+    """Return the record of one style and model: gusts for gusty_s, then still_s still."""
+    tips0 = settled_tips(style, model, dt)
+    sim = HairSimulator(style, model=model)
+    sim.set_head_pose(0.0, *demo(0.0))
+    t, gust, off, riding = 0.0, 0, [], []
+    every = int(round(0.5 / dt))
+    for i in range(int(round(gusty_s / dt))):
+        if i % int(round(GUST_PERIOD / dt)) == 0:
+            gust += 1
+            velocity, turbulence, seed = demo_gust(gust)
+            sim.set_wind(velocity, turbulence=turbulence, seed=seed)
+        t += dt
+        sim.set_head_pose(t, *demo(t))
+        sim.step(dt)
+        if i % every == 0 and t > 2.0:
+            tips = sim.positions_in_head_frame()[:, -1]
+            off.append(float(np.linalg.norm(tips - tips0, axis=1).mean()))
+            riding.append(float(np.mean(tips[:, 2] > tips0[:, 2] + RIDING)))
+    sim.set_wind([0.0, 0.0, 0.0])
+    upright = demo(0.0)
+    for _ in range(int(round(still_s / dt))):
+        t += dt
+        sim.set_head_pose(t, *upright)
+        sim.step(dt)
+    rest = np.linalg.norm(sim.positions_in_head_frame()[:, -1] - tips0, axis=1)
+    off = np.asarray(off)
+    return {'style': style.name, 'model': model, 'dt': dt, 'strands': int(len(rest)),
+            'gusty_s': gusty_s, 'tips_off_style_mean_m': float(off.mean()),
+            'tips_off_style_p90_m': float(np.percentile(off, 90)),
+            'tips_off_style_max_m': float(off.max()),
+            'tips_riding_share': float(np.mean(riding)),
+            'still_s': still_s, 'asleep_after': bool(sim.sleeping),
+            'rest_off_style_mean_m': float(rest.mean()),
+            'strands_off_style': int((rest > OFF_STYLE).sum()),
+            'retried_steps': int(sim.counters['retried_steps'])}
+
+
+def run(quick=False):
+    """Measure every shipped style (thesis_long alone with --quick) with each of RUNS."""
+    names = ['thesis_long'] if quick else paths.shipped_style_names()
+    gusty_s, still_s = (6.0, 4.0) if quick else (24.0, 10.0)
+    cases = [(name, model, dt) for name in names for model, dt in RUNS]
+    return [run_one(load_hairstyle(paths.shipped_style(name)), model, dt, gusty_s, still_s)
+            for name, model, dt in progress(cases, 'style')]
