@@ -47,10 +47,15 @@ def table(rows, cols):
     return '\n'.join(out)
 
 
-def span_cm(values):
-    """Return 'a-b' (or 'a' when they round alike) of values in metres, as cm."""
-    lo, hi = '%.0f' % (100 * min(values)), '%.0f' % (100 * max(values))
+def span(values, fmt='%.0f'):
+    """Return 'a-b' of the smallest and largest value (or 'a' when they print alike)."""
+    lo, hi = fmt % min(values), fmt % max(values)
     return lo if lo == hi else '%s-%s' % (lo, hi)
+
+
+def span_cm(values):
+    """Return span() of values in metres, as whole cm."""
+    return span([100 * v for v in values])
 
 
 def reach_1mm(acc, integ, model='anjyo', scenario='hairstyle'):
@@ -153,9 +158,8 @@ def style_section(rows):
     anjyo = [r for r in rows if r['model'] == 'anjyo']
     chain = [r for r in rows if r['model'] == 'articulated']
 
-    def span(rs, key, fmt='%.1f'):
-        lo, hi = min(r[key] for r in rs), max(r[key] for r in rs)
-        return (fmt % lo) + '-' + (fmt % hi)
+    def of(rs, key, fmt='%.1f'):
+        return span([r[key] for r in rs], fmt)
 
     intro = ('Every shipped style under the demo\'s calm head motion and the gusts the '
              'demo\'s driver sends (1.5-4 m/s every 2 s, calm on every third, turbulence '
@@ -182,10 +186,10 @@ def style_section(rows):
                 'shape, so a lock blown over stays, and the wind model has no shielding: '
                 'every strand takes the full drag of its width, which for the default '
                 'material equals its weight at 2.4 m/s.'
-                % (span(anjyo, 'tips_off_style_mean_cm'),
-                   span(anjyo, 'rest_off_style_mean_cm', '%.2f'),
-                   span(chain, 'tips_off_style_mean_cm'), span(chain, 'riding_percent', '%.0f'),
-                   span(chain, 'strands_off_style', '%d')), '']
+                % (of(anjyo, 'tips_off_style_mean_cm'),
+                   of(anjyo, 'rest_off_style_mean_cm', '%.2f'),
+                   of(chain, 'tips_off_style_mean_cm'), of(chain, 'riding_percent', '%.0f'),
+                   of(chain, 'strands_off_style', '%d')), '']
     return out
 
 

@@ -40,9 +40,9 @@ def run_one(style, model, dt, gusty_s, still_s):
     sim = HairSimulator(style, model=model)
     sim.set_head_pose(0.0, *demo(0.0))
     t, gust, off, riding = 0.0, 0, [], []
-    every = int(round(0.5 / dt))
+    every, gust_every = int(round(0.5 / dt)), int(round(GUST_PERIOD / dt))
     for i in range(int(round(gusty_s / dt))):
-        if i % int(round(GUST_PERIOD / dt)) == 0:
+        if i % gust_every == 0:
             gust += 1
             velocity, turbulence, seed = demo_gust(gust)
             sim.set_wind(velocity, turbulence=turbulence, seed=seed)
