@@ -7,6 +7,8 @@ A simulated strand stands for half a strip, a bundle of `hairs_per_strand` real 
 from dataclasses import asdict, dataclass, fields
 import math
 
+from hair_sim.physics.motion import TELEPORT_ANGLE, TELEPORT_DISTANCE
+
 # name: (low, high) inclusive ranges; the node declares the same ranges to ROS.
 RANGES = {
     'hair_density': (100.0, 5000.0),
@@ -78,10 +80,10 @@ DESCRIPTIONS = {
     'collisions': 'collisions with the head\'s and body\'s spheres on or off',
     'integrator': 'anjyo model\'s integrator: explicit (thesis eq. 6) or implicit',
     'max_wind_speed': 'wind above this is clamped along its direction (m/s)',
-    'max_head_speed': 'a head jumping over 0.25 m faster than this is a teleport: the hair '
-                      'is carried with it (m/s)',
-    'max_head_angular_speed': 'a head turning over 0.6 rad faster than this is a teleport: '
-                              'the hair is carried with it (rad/s)',
+    'max_head_speed': 'a head jumping over %g m faster than this is a teleport: the hair '
+                      'is carried with it (m/s)' % TELEPORT_DISTANCE,
+    'max_head_angular_speed': 'a head turning over %g rad faster than this is a teleport: '
+                              'the hair is carried with it (rad/s)' % TELEPORT_ANGLE,
     'max_head_acceleration': 'head accelerations are clamped to this (m/s^2)',
     'motion_smoothing': 'low-pass time constant of the head\'s velocity (s)',
     'clock_jump_back': 'a pose stamped this much before the last one re-anchors the clock; a '
