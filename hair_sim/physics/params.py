@@ -38,6 +38,7 @@ RANGES = {
     'motion_smoothing': (0.0, 1.0),
     'clock_jump_back': (0.001, 86400.0),
     'root_stiffness_scale': (0.0, 1e9),
+    'shape_stiffness': (0.0, 10.0),
     'air_damping': (0.0, 100.0),
     'contact_friction': (0.0, 2.0),
 }
@@ -55,6 +56,8 @@ DESCRIPTIONS = {
              'rods; stable at sim_rate 60)',
     'root_stiffness_scale': 'the follicle joint\'s stiffness, times the others\' '
                             '(articulated model; very large: clamped)',
+    'shape_stiffness': 'pull of every segment towards its modeled direction under the head '
+                       '(articulated model; N m/rad per m of strand; 0: exact physics)',
     'damping': 'damping rate of the strands\' swing (1/s)',
     'air_damping': 'drag against still air, -air_damping m v on each segment (1/s; apart from '
                    'the wind\'s drag)',
@@ -114,6 +117,14 @@ class PhysicsParams:
     # The first joint's (the follicle's) stiffness is this times the others'; articulated
     # model only (very large: clamped).
     root_stiffness_scale: float = 1.0
+    # Articulated model only: a couple -shape_stiffness * l * e on every segment, e the
+    # rotation from its modeled direction under the head to its direction (N m/rad per
+    # metre of strand). The chain's own springs act between neighbours, so a lock blown
+    # over the crown can rest there; this pulls each segment back to the style, as the
+    # thesis' absolute hinges (eq. 3) and TressFX's global shape constraints do. 0, the
+    # default, is the exact chain; 0.02 brings the shipped styles back after the demo's
+    # gusts (README, hair_sim_bench style).
+    shape_stiffness: float = 0.0
     # gamma_i / I_i of eq. 1 (1/s). 12/s gives a damping ratio of about 0.12 at the default
     # hinge frequency: hair swings a few times and settles within about 1 s. The
     # articulated model spends a fifth of it on joint dampers (d = 0.2 damping times the

@@ -68,8 +68,12 @@ def test_pendulum_period_is_the_exact_physical_pendulum(head, amplitude):
     assert abs(measured - exact) / exact < 0.005, (measured, exact)
 
 
-def _chain_modes(n, length, mass, k, k_root):
-    """Linearised n-link chain hanging under gravity: (omega (n,), mode shapes (n, n))."""
+def _chain_modes(n, length, mass, k, k_root, k_shape=0.0):
+    """
+    Linearised n-link chain hanging under gravity: (omega (n,), mode shapes (n, n)).
+
+    k_shape: each rod's spring towards hanging straight down, on its own absolute angle.
+    """
     seg = length / n
     m = mass / n
     lever = np.tril(np.full((n, n), seg), -1) + np.eye(n) * seg / 2.0
@@ -79,9 +83,23 @@ def _chain_modes(n, length, mass, k, k_root):
     D = np.eye(n) - np.eye(n, k=-1)
     stiff = np.full(n, k)
     stiff[0] = k_root
-    K = K + D.T @ np.diag(stiff) @ D
+    K = K + D.T @ np.diag(stiff) @ D + k_shape * np.eye(n)
     w2, V = eigh(K, M)
     return np.sqrt(w2), V
+
+
+def _swing_in_mode(sim, shape, omega):
+    """Start a hanging chain in a mode's shape (0.01 rad); return its measured frequency."""
+    n = len(shape)
+    shape = 0.01 * shape / np.abs(shape).max()
+    sim.set_directions([np.stack([np.sin(shape), np.zeros(n), -np.cos(shape)], axis=1)])
+    q, ts = [], []
+    for _ in range(int((8 * 2 * math.pi / omega) / DEFAULT_DT)):
+        sim.step(DEFAULT_DT)
+        d = np.diff(sim.pos[0], axis=0)
+        q.append(np.arctan2(d[:, 0], -d[:, 2]) @ shape)
+        ts.append(sim.time)
+    return 2 * math.pi / np.diff(_crossing_times(np.array(q), np.array(ts))).mean()
 
 
 @pytest.mark.parametrize('n', [5, 10])
@@ -94,15 +112,31 @@ def test_hanging_chain_modes_match_linearised_eigenvalues(head, n, mode):
     p = sim.params
     k = p.bending_stiffness / (length / n)
     omega, V = _chain_modes(n, length, float(sim.mass[0].sum()), k, k * p.root_stiffness_scale)
-    shape = 0.01 * V[:, mode] / np.abs(V[:, mode]).max()
-    sim.set_directions([np.stack([np.sin(shape), np.zeros(n), -np.cos(shape)], axis=1)])
-    q, ts = [], []
-    for _ in range(int((8 * 2 * math.pi / omega[mode]) / DEFAULT_DT)):
-        sim.step(DEFAULT_DT)
-        d = np.diff(sim.pos[0], axis=0)
-        q.append(np.arctan2(d[:, 0], -d[:, 2]) @ V[:, mode])
-        ts.append(sim.time)
-    measured = 2 * math.pi / np.diff(_crossing_times(np.array(q), np.array(ts))).mean()
+    measured = _swing_in_mode(sim, V[:, mode], omega[mode])
+    assert abs(measured - omega[mode]) / omega[mode] < 0.01, (measured, omega[mode])
+
+
+@pytest.mark.parametrize('n, mode', [(1, 0), (6, 0), (6, 1), (6, 2)])
+@pytest.mark.parametrize('shape_stiffness', [3e-4, 3e-3])
+def test_shape_springs_shift_the_chain_modes_to_the_linearised_eigenvalues(head, n, mode,
+                                                                           shape_stiffness):
+    """
+    Shape springs on a hanging chain: its modes within 1 % of scipy's eigenvalues.
+
+    Each rod has a couple -kg e towards its modeled direction (kg = shape_stiffness l); the
+    reference Lagrangian has kg on each rod's absolute angle. The two stiffnesses put the
+    springs below and above gravity's stiffness.
+    """
+    length = 0.3
+    sim = _chain(head, [[0.0, 0.0, -1.0]] * n, length, youngs_modulus=1e6,
+                 stiffness_scale=0.05, shape_stiffness=shape_stiffness)
+    p = sim.params
+    k = p.bending_stiffness / (length / n)
+    omega, V = _chain_modes(n, length, float(sim.mass[0].sum()), k, k * p.root_stiffness_scale,
+                            shape_stiffness * length / n)
+    bare, _ = _chain_modes(n, length, float(sim.mass[0].sum()), k, k * p.root_stiffness_scale)
+    assert omega[mode] > 1.02 * bare[mode]          # the springs change what is measured
+    measured = _swing_in_mode(sim, V[:, mode], omega[mode])
     assert abs(measured - omega[mode]) / omega[mode] < 0.01, (measured, omega[mode])
 
 
@@ -156,11 +190,12 @@ def test_bar_chain_reference_tends_to_euler_bernoulli():
     assert errors[-1] < 0.02, errors
 
 
-def _energy_series(head, damping, seconds=10.0):
+def _energy_series(head, damping, seconds=10.0, shape_stiffness=0.0):
     """Return (total energy after each step, the energy of the same strand hanging still)."""
     n = 10
     shape = 0.5 * np.sin(np.linspace(0.3, 2.0, n))
-    sim = _chain(head, [[0.0, 0.0, -1.0]] * n, 0.3, damping=damping)
+    sim = _chain(head, [[0.0, 0.0, -1.0]] * n, 0.3, damping=damping,
+                 shape_stiffness=shape_stiffness)
     still = sum(sim.energy())
     sim.set_directions([np.stack([np.sin(shape), 0.3 * np.sin(shape), -np.cos(shape)], 1)])
     out = []
@@ -170,9 +205,14 @@ def _energy_series(head, damping, seconds=10.0):
     return np.array(out), still
 
 
-def test_energy_is_kept_without_damping(head):
-    """Undamped, no contact: total energy stays within 1 % of the swing's energy for 10 s."""
-    e, still = _energy_series(head, 0.0)
+@pytest.mark.parametrize('shape_stiffness', [0.0, 1e-3])
+def test_energy_is_kept_without_damping(head, shape_stiffness):
+    """
+    Undamped, no contact: total energy stays within 1 % of the swing's energy for 10 s.
+
+    With shape springs too: their energy kg ang^2 / 2 is part of the total.
+    """
+    e, still = _energy_series(head, 0.0, shape_stiffness=shape_stiffness)
     drift = np.abs(e - e[0]).max()
     assert drift < 0.01 * (e[0] - still), (drift, e[0] - still)
 
@@ -476,18 +516,21 @@ def test_shipped_styles_hold_their_modeled_shape(style_name):
     assert sim.diagnostics()['stiffened_joints'] == pytest.approx(stiffer, abs=1e-4)
 
 
-@pytest.mark.parametrize('style_name', ['bob_fringe', 'thesis_long'])
+@pytest.mark.parametrize('style_name, shape_stiffness',
+                         [('bob_fringe', 0.0), ('thesis_long', 0.0), ('thesis_long', 10.0)])
 def test_violent_motion_at_one_step_per_frame_neither_diverges_nor_enters_the_head(
-        style_name):
+        style_name, shape_stiffness):
     """
     The stress bench's violent head motion, 2 s at one step per 60 Hz frame.
 
     No step may raise SimulationDiverged (a step that blows up is taken again from a
     saved state with four times the substeps, and counted), and no vertex beyond a root
-    may end a step inside a collision sphere.
+    may end a step inside a collision sphere. Also with the stiffest shape springs allowed
+    (b = h^2 kg / I of a segment in the thousands: stable because they are implicit).
     """
     from hair_sim.bench.scenarios import violent
-    sim = HairSimulator(load_hairstyle(paths.shipped_style(style_name)), model='articulated')
+    sim = HairSimulator(load_hairstyle(paths.shipped_style(style_name)), model='articulated',
+                        shape_stiffness=shape_stiffness)
     h, t, deepest = 1 / 60, 0.0, np.inf
     for _ in range(int(2.0 / h)):
         t += h

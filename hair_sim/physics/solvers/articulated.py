@@ -83,6 +83,19 @@ taken at the start, a position-dependent force (a contact, an inter-strip spring
 a step, which pumps energy into a strand at omega h / 2 per radian; at 1/60 s that beat the
 joint dampers and strands resting on the head or on their neighbours shook 1-3 mm for ever.
 
+Shape springs (optional, PhysicsParams.shape_stiffness; 0 by default, the exact chain): a
+couple -kg e on every rod, kg = shape_stiffness l, e the rotation taking its modeled
+direction under the head to its direction. The joint springs act between neighbours, so a
+lock the wind blew over the crown rests there; these pull it back to the style, as the
+thesis' absolute hinges and TressFX's global shape constraints do. The couple depends on
+the rod's own absolute turn alone, so it is implicit like the joints' springs, taken at
+its deviation predicted GAMMA h ahead: GAMMA h^2 kg is an added inertia across the rod (a
+pure couple, so in its rotational block alone), the rest a damping of its turn relative to
+the head, with the same numerical damping of modes the step cannot resolve. A hanging
+chain's modes then match the Lagrangian with kg on each rod's absolute angle, undamped it
+keeps its energy (kg e^2 / 2 included), and kg 1e4 times what a step resolves is stable
+(tested).
+
 Rest shape (sag-free): one recursive Newton-Euler pass at the modeled pose (head upright,
 at rest, full distal loads; Hsu et al. 2023, Derouet-Jourdan et al. 2013) gives each
 joint the torque that holds everything beyond it; the joint's spring gets an offset e0
@@ -205,9 +218,12 @@ SAG_BY_HEIGHT = True
 
 # air: the rate (1/s) of the drag -air m v on every segment's centre that the shared forces
 # apply explicitly at the start of the step; the chain adds its implicit half (see below)
+# shape_k, shape_dir: each segment's shape spring (N m/rad; 0: none) and its modeled
+# direction in the head frame (PhysicsParams.shape_stiffness)
 ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', 'd',
                                        'inertia_axial',
-                                       'offset', 'air', 'friction', 'sag_by_height'])
+                                       'offset', 'air', 'friction', 'sag_by_height',
+                                       'shape_k', 'shape_dir'])
 # step_chains' scratch (chain_scratch): per-chain arrays reused for every strand and step
 ChainScratch = namedtuple('ChainScratch', ['Dinv', 'U_A', 'U_B', 'u', 'alpha', 'wm', 'theta',
                                            'guarded', 'g_nrm', 'u_imp', 'dw', 'rc_imp',
@@ -989,6 +1005,7 @@ def step_chains(state,
     inward motion through the whole chain. Returns the segments updated.
     """
     R, omega, rest_rel, kj, dj = state.R, state.omega, state.rest_rel, state.k, state.d
+    shape_k, shape_dir = state.shape_k, state.shape_dir
     offset = state.offset
     alpha_prev = state.alpha
     i_ax = state.inertia_axial
@@ -1021,7 +1038,8 @@ def step_chains(state,
         # A joint too stiff for the step (b = h^2 k / I >> 1) takes its force at the start
         # instead (symplectic Euler), and its mid-step velocity prediction fades likewise.
         for i in range(n_seg):
-            bi = h * h * kj[s, i] / (mass[s, i] * length[s, i] ** 2 / 3.0 + i_ax[s, i])
+            bi = h * h * (kj[s, i] + shape_k[s, i]) / (mass[s, i] * length[s, i] ** 2 / 3.0
+                                                       + i_ax[s, i])
             theta[i] = 0.5 / (1.0 + bi ** 4)
             for a in range(3):
                 wm[i, a] = omega[s, i, a] + theta[i] * h * alpha_prev[s, i, a]
@@ -1105,6 +1123,37 @@ def step_chains(state,
             nbz = nb[2] + r[0] * fby - r[1] * fbx
             pa0, pa1, pa2 = nbx - nex, nby - ney, nbz - nez
             pl0, pl1, pl2 = fbx - fdx - fex, fby - fdy - fey, fbz - fdz - fez
+            kg = shape_k[s, i]
+            if kg > 0.0:
+                # The shape spring: a couple -kg e_g on the rod, e_g the rotation taking its
+                # modeled direction under the head (sd) to its direction d. It depends on the
+                # rod's own absolute angular acceleration alone, so it is implicit like the
+                # joints' springs: taken at its deviation predicted GAMMA h ahead, the
+                # h^2 GAMMA kg part is an added inertia across the rod (a pure couple: the
+                # same about any point, so in J alone), the rest a damping of the turn
+                # relative to the head; and the same numerical damping of modes the step
+                # cannot resolve (b = h^2 kg / I).
+                sd = _apply3(Rb_mid, shape_dir[s, i, 0], shape_dir[s, i, 1], shape_dir[s, i, 2])
+                gx = sd[1] * dz - sd[2] * dy                     # sd x d
+                gy = sd[2] * dx - sd[0] * dz
+                gz = sd[0] * dy - sd[1] * dx
+                sn = sqrt(gx * gx + gy * gy + gz * gz)
+                ang = atan2(sn, sd[0] * dx + sd[1] * dy + sd[2] * dz)
+                g = ang / sn if sn > 1e-15 else 0.0
+                qx, qy, qz = omega[s, i, 0] - spin[0], omega[s, i, 1] - spin[1], \
+                    omega[s, i, 2] - spin[2]
+                qd = qx * dx + qy * dy + qz * dz
+                qx, qy, qz = qx - qd * dx, qy - qd * dy, qz - qd * dz     # across the rod
+                bg = h * h * kg / (m * seg * seg / 3.0 + ia)
+                dg = GAMMA * UNRESOLVED_DAMPING * (bg / (1.0 + bg)) ** 4 * h * kg
+                vg = (GAMMA - theta[i]) * h * kg + dg
+                pa0 += kg * g * gx + vg * qx
+                pa1 += kg * g * gy + vg * qy
+                pa2 += kg * g * gz + vg * qz
+                cg = GAMMA * h * h * kg + h * dg
+                Jm = _add3(Jm, (cg * (1.0 - dx * dx), -cg * dx * dy, -cg * dx * dz,
+                                -cg * dx * dy, cg * (1.0 - dy * dy), -cg * dy * dz,
+                                -cg * dx * dz, -cg * dy * dz, cg * (1.0 - dz * dz)))
             # plus the child's articulated inertia and bias, already moved to this joint
             if i < n_seg - 1:
                 Jm = _add3(Jm, child_A)
@@ -1633,20 +1682,24 @@ class ArticulatedSolver:
 
         Once the chain is placed (a change of the parameters), the joints' stiffness goes
         from the old to the new over MATERIAL_BLEND_S (relax_material; `blending`
-        meanwhile), the offsets giving the new preload torques all along; the rest takes
-        effect at once.
+        meanwhile), the offsets giving the new preload torques all along, and so do the
+        shape springs (linearly: they hold no preload); the rest takes effect at once.
         """
-        before = (self.k, self.offset) if self.placed else None
+        before = (self.k, self.offset, self.shape_k) if self.placed else None
         self._material(sim)
         self.k_target, self.offset_target = self.k, self.offset
+        self.shape_k_target = self.shape_k
         self.blending = False
         if before is None or (np.array_equal(before[0], self.k)
-                              and np.array_equal(before[1], self.offset)):
+                              and np.array_equal(before[1], self.offset)
+                              and np.array_equal(before[2], self.shape_k)):
             return
         self._blend_from = before[0]
+        self._shape_k_from = before[2]
         self._preload = self.k_target[..., None] * self.offset_target
         self._blend_left = MATERIAL_BLEND_S
         self.k, self.offset = before[0].copy(), np.zeros_like(self.offset_target)
+        self.shape_k = before[2].copy()
         self._offsets_from_preload()
         self.blending = True
 
@@ -1664,6 +1717,7 @@ class ArticulatedSolver:
         both = (k_from > 0.0) & (k_to > 0.0)
         ratio = np.divide(k_to, k_from, out=np.ones_like(k_to), where=both)
         self.k[:] = np.where(both, k_from * ratio ** w, k_from + (k_to - k_from) * w)
+        self.shape_k[:] = self._shape_k_from + (self.shape_k_target - self._shape_k_from) * w
         self._offsets_from_preload()
 
     def _offsets_from_preload(self):
@@ -1676,6 +1730,7 @@ class ArticulatedSolver:
         """Put the joints at the new material's stiffness and offsets at once (placed anew)."""
         if self.blending:
             self.k, self.offset = self.k_target, self.offset_target
+            self.shape_k = self.shape_k_target
             self.blending = False
 
     def _material(self, sim):
@@ -1689,6 +1744,8 @@ class ArticulatedSolver:
         self.inertia_axial = np.ascontiguousarray(0.5 * sim.mass * p.bundle_radius ** 2)
         self.air = self.air_damping_rate(p)
         self.friction = p.contact_friction
+        self.shape_k = np.ascontiguousarray(p.shape_stiffness * sim.length)
+        self.shape_dir = np.ascontiguousarray(self.modeled[..., :, 2])
         self.sag_by_height = SAG_BY_HEIGHT
         if p.gravity_compensation:
             offset = sag_free_offsets(self.modeled, sim.length, sim.mass, self.k,
@@ -1720,7 +1777,8 @@ class ArticulatedSolver:
         return ChainState(R=self.R, omega=self.omega, alpha=self.alpha, rest_rel=self.rest_rel,
                           k=self.k, d=self.d, inertia_axial=self.inertia_axial,
                           offset=self.offset, air=self.air, friction=self.friction,
-                          sag_by_height=self.sag_by_height)
+                          sag_by_height=self.sag_by_height, shape_k=self.shape_k,
+                          shape_dir=self.shape_dir)
 
     @staticmethod
     def contact_hinge(head):
@@ -1856,6 +1914,10 @@ class ArticulatedSolver:
                 parent = R_head if i == 0 else self.R[s, i - 1]
                 joint_rotation(parent, self.rest_rel[s, i], self.R[s, i], q)
                 total += self.k[s, i] * bend_energy(q, self.offset[s, i])
+        # the shape springs: kg ang^2 / 2, ang between a rod and its modeled direction
+        modeled = self.shape_dir @ R_head.T
+        cos_ang = np.clip((modeled * self.R[..., :, 2]).sum(-1), -1.0, 1.0)
+        total += float((0.5 * self.shape_k * np.arccos(cos_ang) ** 2).sum())
         return total
 
     @staticmethod
