@@ -5,6 +5,8 @@ Write BENCHMARKS.md from the JSON and plots of a full benchmark run in doc/bench
         .venv/bin/hair_sim_bench $c --json --plots doc/bench > doc/bench/$c.json; done
     .venv/bin/hair_sim_bench stress --json --model articulated \
         > doc/bench/stress_articulated.json
+    .venv/bin/hair_sim_bench stress --json --model articulated --shape-stiffness 0.03 \
+        > doc/bench/stress_articulated_shape.json
     for m in anjyo articulated; do
         .venv/bin/hair_sim_bench settle --json --model $m > doc/bench/settle_$m.json; done
     .venv/bin/hair_sim_bench style --json > doc/bench/style.json
@@ -501,14 +503,33 @@ def failed_cases(cases):
     return (': ' + '; '.join(out)) if out else ''
 
 
+CHAIN_STRESS_COLUMNS = [('case', 'case'), ('step', 'dt'), ('promised', 'promised'),
+                        ('passed', 'passed'), ('retried_steps', 'retried steps'),
+                        ('nan_steps', 'NaN'), ('max_penetration_m', 'max pen. (m)'),
+                        ('max_length_drift', 'length drift'),
+                        ('peak_kinetic_energy_j', 'peak KE (J)'),
+                        ('final_kinetic_energy_j', 'final KE (J)'), ('slept', 'slept'),
+                        ('woke', 'woke')]
+
+
 def stress_articulated_section(stress):
-    """Return the lines of the articulated model's stress table."""
+    """Return the lines of the articulated model's stress table (exact, or shape springs)."""
     cases = stress['cases']
     for r in cases:
         r['step'] = '1/%d' % round(1 / r['dt'])
     failed = [r for r in cases if r['promised'] and not r['passed']]
     sleep_only = [r for r in failed if r['nan_steps'] == 0 and r['max_penetration_m'] <= 1e-3
                   and r['max_length_drift'] <= 1e-9 and not r['slept']]
+    shape = cases[0].get('shape_stiffness', 0.0)
+    if shape:
+        return ['### The articulated model with shape springs '
+                '(`hair_sim_bench stress --json --model articulated --shape-stiffness %g`)'
+                % shape, '',
+                'The same cases, pass rules and steps, with every segment pulled towards its '
+                'modeled direction (`shape_stiffness` %g, what the README suggests for styled '
+                'hair). %d promised case(s) of %d failed.'
+                % (shape, len(failed), sum(r['promised'] for r in cases)), '',
+                table(cases, CHAIN_STRESS_COLUMNS), '']
     return ['### The articulated model under the same abuse '
             '(`hair_sim_bench stress --json --model articulated`)', '',
             'The same cases and pass rules; no turn clamp (the chain splits a step that would '
@@ -522,13 +543,7 @@ def stress_articulated_section(stress):
             % (stress['promised_failures'], len(sleep_only),
                ': nothing diverged or entered a sphere' if len(sleep_only) == len(failed)
                else ''), '',
-            table(cases, [('case', 'case'), ('step', 'dt'), ('promised', 'promised'),
-                          ('passed', 'passed'), ('retried_steps', 'retried steps'),
-                          ('nan_steps', 'NaN'), ('max_penetration_m', 'max pen. (m)'),
-                          ('max_length_drift', 'length drift'),
-                          ('peak_kinetic_energy_j', 'peak KE (J)'),
-                          ('final_kinetic_energy_j', 'final KE (J)'),
-                          ('slept', 'slept'), ('woke', 'woke')]), '']
+            table(cases, CHAIN_STRESS_COLUMNS), '']
 
 
 def settle_section(by_model):
@@ -785,8 +800,9 @@ def main():
               'Turn clamps count segments whose turn in one step was limited to 0.35 rad: '
               'unstable runs trip it every step; extreme forcing (a 30 m/s gale, 20 g nods) '
               'trips it legitimately.', '']
-    if os.path.exists(os.path.join(BENCH, 'stress_articulated.json')):
-        parts += stress_articulated_section(load('stress_articulated'))
+    for name in ('stress_articulated', 'stress_articulated_shape'):
+        if os.path.exists(os.path.join(BENCH, name + '.json')):
+            parts += stress_articulated_section(load(name))
     settled = {m: load('settle_' + m) for m in ('anjyo', 'articulated')
                if os.path.exists(os.path.join(BENCH, 'settle_%s.json' % m))}
     if settled:

@@ -4,8 +4,9 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
     hair_sim_bench accuracy [--json] [--quick] [--plots DIR]   work-precision
     hair_sim_bench scale    [--json] [--quick] [--plots DIR]   cost against strips
     hair_sim_bench skip     [--json] [--quick]                 features on and off
-    hair_sim_bench stress   [--json] [--quick] [--plots DIR] [--model M]
-                                stability under abuse (M: anjyo, the default, or articulated)
+    hair_sim_bench stress   [--json] [--quick] [--plots DIR] [--model M] [--shape-stiffness S]
+                                stability under abuse (M: anjyo, the default, or articulated;
+                                S: the articulated model's shape springs, default 0)
     hair_sim_bench settle   [--json] [--quick] [--model M]     every shipped style at
                                 every step: asleep within 8 s of violent motion in wind?
     hair_sim_bench node     [--json] [--quick]                 the node from outside:
@@ -24,6 +25,7 @@ import os
 import sys
 
 from hair_sim.bench.common import clean, emit
+from hair_sim.physics.params import RANGES
 
 
 PLOTTING = ('accuracy', 'scale', 'stress', 'hanging')     # the commands that write --plots
@@ -58,7 +60,14 @@ def main(argv=None):
     parser.add_argument('--plots', default='bench_out', help='directory for PNG plots')
     parser.add_argument('--model', choices=['anjyo', 'articulated'], default='anjyo',
                         help='the strand model the cases run (stress and settle only)')
+    parser.add_argument('--shape-stiffness', type=float, default=0.0,
+                        help='the articulated model\'s physics.shape_stiffness (stress only)')
     args = parser.parse_args(argv)
+    if args.shape_stiffness != 0.0 and (args.command != 'stress' or args.model != 'articulated'):
+        parser.error('--shape-stiffness is for stress --model articulated')
+    lo, hi = RANGES['shape_stiffness']
+    if not lo <= args.shape_stiffness <= hi:           # (NaN fails this too)
+        parser.error('--shape-stiffness %r is outside [%g, %g]' % (args.shape_stiffness, lo, hi))
     why = plots_folder_problem(args.plots) if args.command in PLOTTING else None
     if why:
         parser.error(why)
@@ -103,7 +112,8 @@ def main(argv=None):
         emit(skip.run(args.quick), args.json, 'skip')
     else:
         from hair_sim.bench import stress
-        records, smap, failed = stress.run(args.quick, args.plots, args.model)
+        records, smap, failed = stress.run(args.quick, args.plots, args.model,
+                                           args.shape_stiffness)
         if args.json:
             print(json.dumps(clean({'cases': records, 'stability_map': smap,
                                     'promised_failures': len(failed)}), indent=1))

@@ -63,11 +63,17 @@ def _penetration(sim):
     return float(max(0.0, -d.min()))
 
 
-def run_case(name, integrator, dt, quick, style, model='anjyo'):
-    """Run one case; return its record (integrator is the thesis model's; see MODELS)."""
+def run_case(name, integrator, dt, quick, style, model='anjyo', shape_stiffness=0.0):
+    """
+    Run one case; return its record (integrator is the thesis model's; see MODELS).
+
+    shape_stiffness: the articulated model's shape springs (PhysicsParams).
+    """
     params = {'model': model}
     if model == 'anjyo':
         params['integrator'] = integrator
+    else:
+        params['shape_stiffness'] = shape_stiffness
     motion, duration, wind, poles = violent, 2.0, None, False
     if name == 'shake':
         motion = shake
@@ -148,6 +154,7 @@ def run_case(name, integrator, dt, quick, style, model='anjyo'):
     ok = (finite and drift <= 1e-9 and drained and sim.min_sin_theta >= 0.7
           and (extreme or (pen <= 1e-3 and slept and woke)))
     return {'case': name, 'model': model, 'integrator': integrator if model == 'anjyo' else '-',
+            'shape_stiffness': sim.params.shape_stiffness,
             'dt': dt, 'promised': promised, 'retried_steps': sim.counters['retried_steps'],
             'nan_steps': nan_steps, 'max_penetration_m': pen, 'max_length_drift': drift,
             'peak_kinetic_energy_j': ke_peak, 'final_kinetic_energy_j': ke_end,
@@ -190,7 +197,7 @@ def stability_map(quick, style):
     return out
 
 
-def run(quick=False, plot_dir=None, model='anjyo'):
+def run(quick=False, plot_dir=None, model='anjyo', shape_stiffness=0.0):
     """Run every case with `model`; return (records, stability map, promised failures)."""
     style = load_hairstyle(paths.shipped_style('thesis_long'))
     dts = DTS_QUICK if quick else DTS_FULL
@@ -199,7 +206,8 @@ def run(quick=False, plot_dir=None, model='anjyo'):
     for name in progress(cases, 'stress'):
         for integ in (INTEGRATORS if model == 'anjyo' else [None]):
             for dt in dts:
-                records.append(run_case(name, integ, dt, quick, style, model))
+                records.append(run_case(name, integ, dt, quick, style, model,
+                                        shape_stiffness))
     # the map is of the thesis model's two integrators (the chain has one, implicit)
     smap = stability_map(quick, style) if model == 'anjyo' else []
     if plot_dir and smap:

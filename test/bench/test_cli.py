@@ -77,6 +77,18 @@ def test_style_quick(tmp_path):
         assert r['strands_off_style'] == 0 and r['rest_off_style_mean_m'] < 1e-3, r
 
 
+@pytest.mark.parametrize('args, why', [
+    (['stress', '--shape-stiffness', '0.03'], 'for stress --model articulated'),
+    (['style', '--shape-stiffness', '0.03'], 'for stress --model articulated'),
+    (['stress', '--model', 'articulated', '--shape-stiffness', 'nan'], 'outside [0, 10]'),
+    (['stress', '--model', 'articulated', '--shape-stiffness', '11'], 'outside [0, 10]')])
+def test_shape_stiffness_is_refused_where_it_means_nothing_or_is_out_of_range(args, why):
+    """The thesis model has no shape springs, and the range is the parameter's own."""
+    out = subprocess.run([BENCH] + args, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2 and why in out.stderr, out.stderr
+    assert not out.stdout
+
+
 def test_skip_quick(tmp_path):
     """One record per feature and style (culling: every shipped style), work and skip costs."""
     import os
