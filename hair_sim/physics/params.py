@@ -38,7 +38,7 @@ RANGES = {
     'motion_smoothing': (0.0, 1.0),
     'clock_jump_back': (0.001, 86400.0),
     'root_stiffness_scale': (0.0, 1e9),
-    'shape_stiffness': (0.0, 10.0),
+    'shape_stiffness': (0.0, 1.0),     # 0.1 already holds the style within 2 cm in gusts
     'air_damping': (0.0, 100.0),
     'contact_friction': (0.0, 2.0),
 }

@@ -80,8 +80,8 @@ def test_style_quick(tmp_path):
 @pytest.mark.parametrize('args, why', [
     (['stress', '--shape-stiffness', '0.03'], 'for stress --model articulated'),
     (['style', '--shape-stiffness', '0.03'], 'for stress --model articulated'),
-    (['stress', '--model', 'articulated', '--shape-stiffness', 'nan'], 'outside [0, 10]'),
-    (['stress', '--model', 'articulated', '--shape-stiffness', '11'], 'outside [0, 10]')])
+    (['stress', '--model', 'articulated', '--shape-stiffness', 'nan'], 'outside [0, 1]'),
+    (['stress', '--model', 'articulated', '--shape-stiffness', '1.5'], 'outside [0, 1]')])
 def test_shape_stiffness_is_refused_where_it_means_nothing_or_is_out_of_range(args, why):
     """The thesis model has no shape springs, and the range is the parameter's own."""
     out = subprocess.run([BENCH] + args, capture_output=True, text=True, timeout=60)

@@ -34,7 +34,8 @@ def _violent_until(sim, t_end, t=0.0):
 @pytest.mark.parametrize('change', [{'root_stiffness_scale': 1e4},
                                     {'root_stiffness_scale': 1e9},
                                     {'stiffness_scale': 100.0},
-                                    {'youngs_modulus': 2e10}])
+                                    {'youngs_modulus': 2e10},
+                                    {'shape_stiffness': 1.0}])
 @pytest.mark.parametrize('t_change', [0.5, 1.3])
 def test_stiffening_a_swinging_strand_neither_diverges_nor_flings_it(short_style, change,
                                                                      t_change):
@@ -103,7 +104,8 @@ def test_the_change_takes_effect_smoothly_and_exactly(short_style):
 
 @pytest.mark.parametrize('change', [{'root_stiffness_scale': 1e6},
                                     {'stiffness_scale': 20.0},
-                                    {'hair_density': 3000.0}])
+                                    {'hair_density': 3000.0},
+                                    {'shape_stiffness': 1.0}])
 def test_hair_at_rest_stays_put_through_a_change_and_sleeps_again(short_style, change):
     """
     The modeled pose is the equilibrium of the old material and of the new (sag-free).
