@@ -102,7 +102,7 @@ def targets(r180, r1000):
     return 'Targets: %s.' % '; '.join(out)
 
 
-def one_step_sentence(one_step, r180):
+def one_step_sentence(one_step, r180, what=''):
     """Return a sentence on the articulated model at one step per frame, if it was run."""
     o180 = next((r for r in one_step if r['strips'] == 180), None)
     o1000 = next((r for r in one_step if r['strips'] == 1000), None)
@@ -112,10 +112,11 @@ def one_step_sentence(one_step, r180):
     if o1000:
         at_1000 = ' and 1000 at %.0f (%.0f)' % (
             o1000['end_to_end_fps'], o1000['end_to_end_fps_mean'])
-    return (' At one step per 60 Hz frame (`sim_rate: 60.0`) it runs 180 strips at %.0f fps '
+    return (' At one step per 60 Hz frame (`sim_rate: 60.0`)%s it runs 180 strips at %.0f fps '
             'end to end (%.0f with the mean physics of a frame)%s: its frame\'s physics costs '
             '%.1fx the thesis model\'s four steps (means of 2 s of frames).'
-            % (o180['end_to_end_fps'], o180['end_to_end_fps_mean'], at_1000,
+            % (' ' + what if what else '', o180['end_to_end_fps'],
+               o180['end_to_end_fps_mean'], at_1000,
                o180['physics_frame_ms_mean'] / r180['physics_frame_ms_mean']))
 
 
@@ -665,7 +666,9 @@ def main():
     articulated = [r for r in scale if r.get('model') == 'articulated'
                    and r.get('substeps_per_frame', 4) == 4]
     one_step = [r for r in scale if r.get('model') == 'articulated'
-                and r.get('substeps_per_frame') == 1]
+                and r.get('substeps_per_frame') == 1 and not r.get('shape_stiffness')]
+    shaped = [r for r in scale if r.get('model') == 'articulated'
+              and r.get('substeps_per_frame') == 1 and r.get('shape_stiffness')]
     parts += ['## Scale against the thesis (`hair_sim_bench scale --json`)', '',
               'Styles are thesis_long refined to n strips, under the demo\'s head motion and '
               'a gusty 2 m/s wind; 4 solver steps per 60 Hz frame (the default `sim_rate`, '
@@ -692,6 +695,10 @@ def main():
                   'Stable there by design (a segment that would turn more than 0.05 rad '
                   'takes substeps); "step ms" is then a whole frame\'s physics.', '',
                   table(one_step, cols), '']
+    if shaped:
+        parts += ['### Articulated model at one step per frame with shape springs '
+                  '(`shape_stiffness: %g`)' % shaped[0]['shape_stiffness'], '',
+                  table(shaped, cols), '']
     parts += ['![](doc/bench/scale.png)', '']
     r180 = next(r for r in anjyo if r['strips'] == 180)
     r1000 = next((r for r in anjyo if r['strips'] == 1000), None)
@@ -717,7 +724,8 @@ def main():
                  ('The articulated model\'s step costs %.1fx the thesis model\'s at 180 strips '
                   '(%.0f fps end to end).%s' % (
                       c180['physics_step_ms'] / r180['physics_step_ms'],
-                      c180['end_to_end_fps'], one_step_sentence(one_step, r180)))
+                      c180['end_to_end_fps'], one_step_sentence(one_step, r180)
+                      + one_step_sentence(shaped, r180, 'with shape springs')))
                  if c180 else '',
                  same_machine_before(anjyo, articulated)), '']
     parts += ['### Message sizes: hair_mesh before and after the topology split', '',

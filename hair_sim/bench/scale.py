@@ -18,6 +18,7 @@ import numpy as np
 from hair_sim import load_hairstyle, paths
 from hair_sim.bench.common import progress, save_figure
 from hair_sim.bench.scenarios import demo
+from hair_sim.physics.params import STYLED_SHAPE_STIFFNESS
 from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator
 from hair_sim.physics.simulator import SUBSTEPS_PER_60HZ_FRAME as SUBSTEPS
 from hair_sim.render import HairRenderer
@@ -27,9 +28,11 @@ from hair_sim.sinks.mesh_msg import hair_mesh_cdr, hair_mesh_topology_cdr
 THESIS_FPS = {20: 81, 52: 79, 84: 67, 116: 59, 148: 46, 180: 41}
 STRIPS_FULL = [20, 52, 84, 116, 148, 180, 500, 1000, 2000]
 STRIPS_QUICK = [20, 180]
-# (model, solver steps per 60 Hz frame): the default sim_rate for both, and the articulated
-# model at one step per frame
-CONFIGS = (('anjyo', SUBSTEPS), ('articulated', SUBSTEPS), ('articulated', 1))
+# (model, solver steps per 60 Hz frame, shape_stiffness): the default sim_rate for both,
+# and the articulated model at one step per frame, exact and with the shape springs the
+# README suggests for styled hair
+CONFIGS = (('anjyo', SUBSTEPS, 0.0), ('articulated', SUBSTEPS, 0.0), ('articulated', 1, 0.0),
+           ('articulated', 1, STYLED_SHAPE_STIFFNESS))
 FRAME_RATE = 60.0
 MARKER_RATE = 10.0             # the node's shipped marker_rate: markers in 1 frame of 6
 TEXTURE_EVERY = 30             # before the split, HairMesh carried the PNG every 30th message
@@ -66,10 +69,10 @@ def median_ms(fn, repeats):
     return 1e3 * float(np.median(times))
 
 
-def demo_scene(n_strips, model='anjyo', dt=DEFAULT_DT):
+def demo_scene(n_strips, model='anjyo', dt=DEFAULT_DT, shape_stiffness=0.0):
     """Return (simulator, step) of thesis_long with n_strips under the demo's head and wind."""
     style = load_hairstyle(paths.shipped_style('thesis_long')).with_strip_count(n_strips)
-    sim = HairSimulator(style, model=model)
+    sim = HairSimulator(style, model=model, shape_stiffness=shape_stiffness)
     sim.set_head_pose(0.0, *demo(0.0))
     sim.set_wind([2.0, 0.5, 0.0], turbulence=0.3, seed=2)
     clock = [0.0]
@@ -92,7 +95,7 @@ def physics_frame_ms(step, steps, frames):
     return 1e3 * (time.perf_counter() - t0) / frames
 
 
-def row(n_strips, repeats, model='anjyo', steps=SUBSTEPS):
+def row(n_strips, repeats, model='anjyo', steps=SUBSTEPS, shape_stiffness=0.0):
     """
     Measure one style size with one strand model at `steps` solver steps per 60 Hz frame.
 
@@ -100,7 +103,7 @@ def row(n_strips, repeats, model='anjyo', steps=SUBSTEPS):
     model's substeps come in bursts where the gusts whip a tip, so the mean over 2 s of
     frames is reported too (physics_frame_ms_mean, end_to_end_fps_mean).
     """
-    sim, step = demo_scene(n_strips, model, 1.0 / (FRAME_RATE * steps))
+    sim, step = demo_scene(n_strips, model, 1.0 / (FRAME_RATE * steps), shape_stiffness)
     step_ms = median_ms(step, repeats * SUBSTEPS)
     frame_mean_ms = physics_frame_ms(step, steps, int(2 * FRAME_RATE))
     renderer = HairRenderer.for_simulator(sim)
@@ -132,6 +135,7 @@ def row(n_strips, repeats, model='anjyo', steps=SUBSTEPS):
             'simulated_vertices': int(sim.pos.shape[0] * sim.pos.shape[1]),
             'rendered_vertices': int(len(mesh.vertices)), 'physics_step_ms': step_ms,
             'substeps_per_frame': steps, 'sim_rate': FRAME_RATE * steps,
+            'shape_stiffness': shape_stiffness,
             'physics_frame_ms_mean': frame_mean_ms, 'frame_ms': mesh_ms,
             'hair_mesh_ms': hair_mesh_ms,
             'hair_mesh_bytes': mesh_bytes, 'hair_mesh_topology_bytes': topology_bytes,
@@ -155,9 +159,9 @@ def run(quick=False, plot_dir=None):
     end_to_end_fps_markers_every_frame counts them in every frame).
     """
     sizes = STRIPS_QUICK if quick else STRIPS_FULL
-    records = [row(n, 5 if quick else 30, model, steps)
-               for model, steps, n in progress([(m, k, n) for m, k in CONFIGS for n in sizes],
-                                               'scale')]
+    records = [row(n, 5 if quick else 30, model, steps, shape)
+               for model, steps, shape, n in progress([c + (n,) for c in CONFIGS
+                                                       for n in sizes], 'scale')]
     if plot_dir:
         plot(records, plot_dir)
     return records
@@ -169,11 +173,13 @@ def plot(records, plot_dir):
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
-    for (model, steps), style in zip(CONFIGS, ('o-', 'v-', '^-')):
-        rs = [r for r in records if r['model'] == model and r['substeps_per_frame'] == steps]
+    for (model, steps, shape), style in zip(CONFIGS, ('o-', 'v-', '^-', 'd-')):
+        rs = [r for r in records if r['model'] == model and r['substeps_per_frame'] == steps
+              and r['shape_stiffness'] == shape]
         a.loglog([r['strips'] for r in rs], [r['end_to_end_fps'] for r in rs], style,
-                 label='hair_sim end to end, %s, %d step%s a frame'
-                 % (model, steps, '' if steps == 1 else 's'))
+                 label='hair_sim end to end, %s%s, %d step%s a frame'
+                 % (model, ' + shape springs' if shape else '', steps,
+                    '' if steps == 1 else 's'))
     t = [r for r in records if r['thesis_fps'] and r['model'] == 'anjyo']
     a.loglog([r['strips'] for r in t], [r['thesis_fps'] for r in t], 's--',
              label='thesis table 5.1 (2003)')
@@ -189,12 +195,13 @@ def plot(records, plot_dir):
               ('end_to_end_ms', 'end to end (%d steps)' % rs[0]['substeps_per_frame']))
     for key, label in series:
         b.loglog(n, [r[key] for r in rs], 'o-', label=label)
-    for steps, style in ((SUBSTEPS, 'v--'), (1, '^--')):
-        ra = [r for r in records
-              if r['model'] == 'articulated' and r['substeps_per_frame'] == steps]
+    for steps, shape, style in ((SUBSTEPS, 0.0, 'v--'), (1, 0.0, '^--'),
+                                (1, STYLED_SHAPE_STIFFNESS, 'd--')):
+        ra = [r for r in records if r['model'] == 'articulated'
+              and r['substeps_per_frame'] == steps and r['shape_stiffness'] == shape]
         b.loglog([r['strips'] for r in ra], [r['physics_frame_ms_mean'] for r in ra], style,
-                 label='physics of a frame (mean), articulated, %d step%s'
-                 % (steps, '' if steps == 1 else 's'))
+                 label='physics of a frame (mean), articulated%s, %d step%s'
+                 % (' + shape springs' if shape else '', steps, '' if steps == 1 else 's'))
     b.set_xlabel('strips')
     b.set_ylabel('ms (anjyo unless marked)')
     b.legend(fontsize=7)

@@ -3,7 +3,7 @@ hair_sim_bench style: whether a hairstyle keeps its look in a breeze, and comes 
 
 Every shipped style, each strand model at its steps (the thesis model at the default
 1/240 s; the articulated model at 1/240 s and at one step per 60 Hz frame, exact and with
-the shape springs the README suggests, shape_stiffness SHAPE_STIFFNESS), under the
+the shape springs the README suggests, STYLED_SHAPE_STIFFNESS), under the
 demo's calm head motion and the gusts hair_sim_head_driver sends (1.5-4 m/s every 2 s,
 calm on every third). Per run: how far the tips are from the style settled under the
 same model (head frame) while the gusts blow, and how many strands rest more than 3 cm
@@ -16,15 +16,12 @@ import numpy as np
 from hair_sim import load_hairstyle, paths
 from hair_sim.bench.common import progress
 from hair_sim.bench.scenarios import demo, demo_gust, drive, GUST_PERIOD, quarter_turn
+from hair_sim.physics.params import STYLED_SHAPE_STIFFNESS
 from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator
 
-# the shape_stiffness the README suggests for the articulated model: every strand of every
-# shipped style back after the gusts, as with the thesis model (measured: 0.003 and 0.01
-# left 2-3 strands of thesis_long, side_swept_long and thesis_short off)
-SHAPE_STIFFNESS = 0.03
 # (model, dt, shape_stiffness)
 RUNS = (('anjyo', DEFAULT_DT, 0.0), ('articulated', DEFAULT_DT, 0.0),
-        ('articulated', 1.0 / 60, 0.0), ('articulated', 1.0 / 60, SHAPE_STIFFNESS))
+        ('articulated', 1.0 / 60, 0.0), ('articulated', 1.0 / 60, STYLED_SHAPE_STIFFNESS))
 OFF_STYLE = 0.03        # m: a strand whose tip rests farther than this is off its style
 RIDING = 0.05           # m: a tip this far above its place is blown up
 SETTLE_S = 5.0          # s the style gets to settle under the first pose, still air

@@ -42,6 +42,10 @@ RANGES = {
     'air_damping': (0.0, 100.0),
     'contact_friction': (0.0, 2.0),
 }
+# the shape_stiffness suggested for styled hair on the articulated model (README): every
+# strand of every shipped style back after the demo's gusts (hair_sim_bench style; 0.003
+# and 0.01 left 2-3 strands of thesis_long, side_swept_long and thesis_short off)
+STYLED_SHAPE_STIFFNESS = 0.03
 INTEGRATORS = ('explicit', 'implicit')
 MODELS = ('anjyo', 'articulated')
 # name: what it means, in one line (the node's parameter descriptors and --help say it)
@@ -122,8 +126,8 @@ class PhysicsParams:
     # metre of strand). The chain's own springs act between neighbours, so a lock blown
     # over the crown can rest there; this pulls each segment back to the style, as the
     # thesis' absolute hinges (eq. 3) and TressFX's global shape constraints do. 0, the
-    # default, is the exact chain; 0.02 brings the shipped styles back after the demo's
-    # gusts (README, hair_sim_bench style).
+    # default, is the exact chain; STYLED_SHAPE_STIFFNESS brings the shipped styles back
+    # after the demo's gusts (README, hair_sim_bench style).
     shape_stiffness: float = 0.0
     # gamma_i / I_i of eq. 1 (1/s). 12/s gives a damping ratio of about 0.12 at the default
     # hinge frequency: hair swings a few times and settles within about 1 s. The

@@ -37,9 +37,11 @@ def test_accuracy_quick(tmp_path):
 
 def test_scale_quick(tmp_path):
     """Rows of both models with the documented columns, hair_mesh sizes, and a plot."""
+    from hair_sim.bench.scale import CONFIGS
     rc, rows = bench('scale', tmp_path)
     assert rc == 0
-    assert {r['model'] for r in rows} == {'anjyo', 'articulated'}
+    assert {(r['model'], r['substeps_per_frame'], r['shape_stiffness']) for r in rows} == \
+        set(CONFIGS)
     for r in rows:
         assert {'strips', 'simulated_vertices', 'rendered_vertices', 'physics_step_ms',
                 'frame_ms', 'hair_mesh_ms', 'marker_bytes_ms', 'meshcat_encode_ms',
