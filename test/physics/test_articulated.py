@@ -283,17 +283,23 @@ def test_rotation_exp_is_the_rotation_of_its_vector(angle):
                                    atol=1e-15)
 
 
-def test_reruns_are_bit_identical():
-    """The same inputs give the same bytes."""
+@pytest.mark.parametrize('shape_stiffness', [0.0, 0.03])
+def test_reruns_are_bit_identical(shape_stiffness):
+    """The same inputs give the same bytes (with shape springs too, which change them)."""
     def run():
+        params = dict(hanging.scene_params('articulated'), shape_stiffness=shape_stiffness)
         sim = HairSimulator.from_strands(hanging.rest_strands(12, 6), hanging.head_model(),
-                                         **hanging.scene_params('articulated'))
+                                         **params)
         for i in range(60):
             yaw = 0.5 * math.sin(i / 10.0)
             sim.set_head_pose(i / 60.0, [0, 0, 0], [0, 0, math.sin(yaw / 2), math.cos(yaw / 2)])
             sim.step(1 / 60)
         return sim.pos.copy()
-    assert run().tobytes() == run().tobytes()
+    first = run()
+    assert first.tobytes() == run().tobytes()
+    if shape_stiffness:
+        shape_stiffness = 0.0                               # (run() reads it)
+        assert np.abs(first - run()).max() > 1e-3          # the springs act in this run
 
 
 @pytest.mark.parametrize('counts', [(1, 2), (1, 3), (1, 1, 4, 2)])
