@@ -9,6 +9,8 @@ Write BENCHMARKS.md from the JSON and plots of a full benchmark run in doc/bench
         > doc/bench/stress_articulated_shape.json
     for m in anjyo articulated; do
         .venv/bin/hair_sim_bench settle --json --model $m > doc/bench/settle_$m.json; done
+    .venv/bin/hair_sim_bench settle --json --model articulated --shape-stiffness 0.03 \
+        > doc/bench/settle_articulated_shape.json
     .venv/bin/hair_sim_bench style --json > doc/bench/style.json
     .venv/bin/python tools/make_benchmarks_md.py
 """
@@ -100,6 +102,18 @@ def targets(r180, r1000):
             r['strips'], r['end_to_end_fps'], goal,
             'met' if r['end_to_end_fps'] >= goal else 'missed'))
     return 'Targets: %s.' % '; '.join(out)
+
+
+def passes_sentence(anjyo):
+    """Return how the rows were chosen from the bench's passes, if it ran more than one."""
+    rounds = {n: r.get('end_to_end_fps_rounds', []) for r in anjyo
+              for n in (r['strips'],) if n in (180, 1000)}
+    if len(rounds.get(180, [])) < 2:
+        return ''
+    return (' Each row is the median of %d passes over every case, interleaved (this '
+            'machine\'s speed moves within minutes); the thesis model\'s passes ran %s fps at '
+            '180 strips and %s at 1000.'
+            % (len(rounds[180]), span(rounds[180], '%.0f'), span(rounds.get(1000, []), '%.0f')))
 
 
 def one_step_sentence(one_step, r180, what=''):
@@ -581,7 +595,12 @@ def settle_section(by_model):
         bad = [r for r in rows if r['promised'] and r['not_asleep']]
         cells = ['%s at %s (%d of %d)' % (r['style'], r['step'], r['not_asleep'], r['runs'])
                  for r in bad]
-        out += ['### %s model' % ('Thesis' if model == 'anjyo' else 'Articulated'), '',
+        shape = rows[0].get('shape_stiffness', 0.0) if rows else 0.0
+        title = 'Thesis model' if model == 'anjyo' else 'Articulated model'
+        if shape:
+            title += (' with shape springs (`--model articulated --shape-stiffness %g`)'
+                      % shape)
+        out += ['### %s' % title, '',
                 '%d of %d runs not asleep within 8 s; %d of %d promised style-and-step cells '
                 'with such a run%s.' % (
                     sum(r['not_asleep'] for r in rows), sum(r['runs'] for r in rows),
@@ -678,7 +697,8 @@ def main():
               'one frame in six; the column "markers every frame" counts them in every '
               'frame). The step is the median step; "fps, mean physics" takes the mean of 2 s '
               'of frames instead (the articulated model\'s substeps come in bursts where a '
-              'gust whips a tip). meshcat encodes on its own thread.', '']
+              'gust whips a tip). meshcat encodes on its own thread.%s' % passes_sentence(anjyo),
+              '']
     cols = [('strips', 'strips'), ('simulated_vertices', 'sim. vertices'),
             ('rendered_vertices', 'drawn vertices'), ('physics_step_ms', 'step ms'),
             ('frame_ms', 'U-shape ms'), ('hair_mesh_ms', 'hair_mesh ms'),
@@ -811,7 +831,7 @@ def main():
     for name in ('stress_articulated', 'stress_articulated_shape'):
         if os.path.exists(os.path.join(BENCH, name + '.json')):
             parts += stress_articulated_section(load(name))
-    settled = {m: load('settle_' + m) for m in ('anjyo', 'articulated')
+    settled = {m: load('settle_' + m) for m in ('anjyo', 'articulated', 'articulated_shape')
                if os.path.exists(os.path.join(BENCH, 'settle_%s.json' % m))}
     if settled:
         parts += settle_section(settled)

@@ -7,8 +7,9 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
     hair_sim_bench stress   [--json] [--quick] [--plots DIR] [--model M] [--shape-stiffness S]
                                 stability under abuse (M: anjyo, the default, or articulated;
                                 S: the articulated model's shape springs, default 0)
-    hair_sim_bench settle   [--json] [--quick] [--model M]     every shipped style at
-                                every step: asleep within 8 s of violent motion in wind?
+    hair_sim_bench settle   [--json] [--quick] [--model M] [--shape-stiffness S]
+                                every shipped style at every step: asleep within 8 s of
+                                violent motion in wind?
     hair_sim_bench node     [--json] [--quick]                 the node from outside:
                                 rates, latency, CPU, avatars per machine, load gaps
     hair_sim_bench budget   [--json] [--quick]                 per-vertex costs behind
@@ -61,10 +62,12 @@ def main(argv=None):
     parser.add_argument('--model', choices=['anjyo', 'articulated'], default='anjyo',
                         help='the strand model the cases run (stress and settle only)')
     parser.add_argument('--shape-stiffness', type=float, default=0.0,
-                        help='the articulated model\'s physics.shape_stiffness (stress only)')
+                        help='the articulated model\'s physics.shape_stiffness (stress and '
+                        'settle only)')
     args = parser.parse_args(argv)
-    if args.shape_stiffness != 0.0 and (args.command != 'stress' or args.model != 'articulated'):
-        parser.error('--shape-stiffness is for stress --model articulated')
+    if args.shape_stiffness != 0.0 and (args.command not in ('stress', 'settle')
+                                        or args.model != 'articulated'):
+        parser.error('--shape-stiffness is for stress and settle with --model articulated')
     lo, hi = RANGES['shape_stiffness']
     if not lo <= args.shape_stiffness <= hi:           # (NaN fails this too)
         parser.error('--shape-stiffness %r is outside [%g, %g]' % (args.shape_stiffness, lo, hi))
@@ -91,7 +94,7 @@ def main(argv=None):
         emit(hanging.run(args.quick, args.plots), args.json, 'hanging')
     elif args.command == 'settle':
         from hair_sim.bench import settle
-        result = settle.run(args.quick, args.model)
+        result = settle.run(args.quick, args.model, args.shape_stiffness)
         if args.json:
             print(json.dumps(clean(result), indent=1))
         else:

@@ -34,12 +34,13 @@ MOTION_S = 2.0                     # s of violent motion in the wind
 WINDOW_S = 8.0                     # s the hair has to fall asleep in, head still, no wind
 
 
-def run_one(style, model, dt, wind, seed, phase=0.0):
+def run_one(style, model, dt, wind, seed, phase=0.0, shape_stiffness=0.0):
     """Return the record of one run (see the module text); phase advances the motion (s)."""
-    sim = HairSimulator(style, model=model)
+    sim = HairSimulator(style, model=model, shape_stiffness=shape_stiffness)
     promised = stability_problem(sim.params, sim, dt) is None
     sim.set_wind([wind, 0.0, 0.0], turbulence=1.0, seed=seed)
-    record = {'style': style.name, 'model': model, 'dt': dt, 'wind_mps': wind, 'seed': seed,
+    record = {'style': style.name, 'model': model, 'shape_stiffness': shape_stiffness,
+              'dt': dt, 'wind_mps': wind, 'seed': seed,
               'phase_s': phase, 'promised': promised, 'diverged': False,
               'slept_after_s': None, 'last_step_max_move_m': None}
 
@@ -76,6 +77,7 @@ def summary(runs):
             awake = [r for r in cell if r['slept_after_s'] is None]
             slept = [r['slept_after_s'] for r in cell if r['slept_after_s'] is not None]
             rows.append({'style': style, 'model': cell[0]['model'], 'dt': dt,
+                         'shape_stiffness': cell[0].get('shape_stiffness', 0.0),
                          'promised': all(r['promised'] for r in cell), 'runs': len(cell),
                          'not_asleep': len(awake),
                          'diverged': sum(bool(r.get('diverged')) for r in cell),
@@ -85,17 +87,19 @@ def summary(runs):
     return rows
 
 
-def run(quick=False, model='anjyo'):
+def run(quick=False, model='anjyo', shape_stiffness=0.0):
     """
     Run every shipped style at every step, wind and seed; return {'runs', 'summary'}.
 
     quick: the 30 m/s wind and seed 1 (phase 0) only (a run per style and step).
+    shape_stiffness: the articulated model's shape springs.
     """
     names = paths.shipped_style_names()
     winds, seeds = ((30.0,), SEEDS[:1]) if quick else (WINDS, SEEDS)
     jobs = [(name, dt, wind, seed) for name in names for dt in STEPS for wind in winds
             for seed in seeds]
     styles = {name: load_hairstyle(paths.shipped_style(name)) for name in names}
-    runs = [run_one(styles[name], model, dt, wind, seed, PHASES[SEEDS.index(seed)])
+    runs = [run_one(styles[name], model, dt, wind, seed, PHASES[SEEDS.index(seed)],
+                    shape_stiffness)
             for name, dt, wind, seed in progress(jobs, 'settle %s' % model)]
     return {'runs': runs, 'summary': summary(runs)}

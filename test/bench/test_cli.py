@@ -80,8 +80,9 @@ def test_style_quick(tmp_path):
 
 
 @pytest.mark.parametrize('args, why', [
-    (['stress', '--shape-stiffness', '0.03'], 'for stress --model articulated'),
-    (['style', '--shape-stiffness', '0.03'], 'for stress --model articulated'),
+    (['stress', '--shape-stiffness', '0.03'], 'with --model articulated'),
+    (['settle', '--shape-stiffness', '0.03'], 'with --model articulated'),
+    (['style', '--shape-stiffness', '0.03'], 'for stress and settle'),
     (['stress', '--model', 'articulated', '--shape-stiffness', 'nan'], 'outside [0, 1]'),
     (['stress', '--model', 'articulated', '--shape-stiffness', '1.5'], 'outside [0, 1]')])
 def test_shape_stiffness_is_refused_where_it_means_nothing_or_is_out_of_range(args, why):
@@ -154,7 +155,7 @@ def test_settle_samples_the_motion_at_a_phase_per_seed(monkeypatch):
         'slept_after_s': 1.0, 'last_step_max_move_m': 0.0})
     settle.run(quick=False, model='articulated')
     still = {}
-    for style, model, dt, wind, seed, phase in calls:
+    for style, model, dt, wind, seed, phase, _ in calls:
         if wind == 0.0:
             still.setdefault((style.name, dt), []).append(phase)
     assert still and all(len(set(p)) == len(settle.SEEDS) for p in still.values())
