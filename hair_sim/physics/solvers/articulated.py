@@ -1689,7 +1689,7 @@ class ArticulatedSolver:
         Once the chain is placed (a change of the parameters), the joints' stiffness goes
         from the old to the new over MATERIAL_BLEND_S (relax_material; `blending`
         meanwhile), the offsets giving the new preload torques all along, and so do the
-        shape springs (linearly: they hold no preload); the rest takes effect at once.
+        shape springs (SHAPE_BLEND_FLOOR); the rest takes effect at once.
         """
         before = (self.k, self.offset, self.shape_k) if self.placed else None
         self._material(sim)
