@@ -50,7 +50,7 @@ def main(argv=None):
     parser.add_argument('--style', default='thesis_long', help='hairstyle name')
     parser.add_argument('--no-meshcat', action='store_true', help='ROS topics only')
     args = parser.parse_args(own)
-    from hair_sim.ros.node import HairSimNode
+    from hair_sim.ros.node import HairSimNode, ignore_interrupts_while_stopping
 
     # the demo's choices first, so that the user's --ros-args -p ... override them
     # (the name as a YAML string: rcl reads a -p value as YAML, and '', '[1, 2]' or 'a: b'
@@ -97,6 +97,7 @@ def main(argv=None):
         print('hair_sim_demo: %s' % exc, file=sys.stderr)
         code = 1
     finally:
+        ignore_interrupts_while_stopping()
         if driver is not None and driver.poll() is None:
             driver.terminate()
             try:

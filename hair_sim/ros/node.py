@@ -20,7 +20,9 @@ from collections import Counter, deque
 import functools
 import math
 import os
+import signal
 import sys
+import threading
 import time
 import traceback
 
@@ -872,10 +874,24 @@ def main(args=None):
         print('hair_sim_node: %s' % exc, file=sys.stderr)
         return 1
     finally:
+        ignore_interrupts_while_stopping()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def ignore_interrupts_while_stopping():
+    """
+    Ignore a further Ctrl-C: the program is stopping, and its cleanup must run to its end.
+
+    The cleanup joins the workers (with timeouts) and kills the meshcat server, which runs
+    in its own session and outlives a program that does not. A second Ctrl-C during it (a
+    user pressing again) printed a KeyboardInterrupt traceback from the join and left the
+    server holding port 7000, where the next demo's URL then showed its stale scene.
+    """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 if __name__ == '__main__':

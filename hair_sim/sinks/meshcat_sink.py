@@ -171,18 +171,26 @@ class MeshcatSink:
         self._wake.set()
 
     def stop(self):
-        """Stop the worker and the server it started."""
+        """
+        Stop the worker and the server it started.
+
+        The server goes first: it runs in its own session, so nothing else stops it, and a
+        worker waiting on its reply then fails at once (quietly: it is stopping) instead of
+        waiting for the reply's timeout.
+        """
         self._stop.set()
         self._wake.set()
-        if self._thread.is_alive():
-            self._thread.join(timeout=5.0)
         if self._server is not None:
             self._server.kill()
             self._server.wait(timeout=5.0)
             self._server = None
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
 
     def _warn(self, msg):
-        if self.log is not None:
+        # (not once stopping: the node's context may be shut down already, and a failure
+        # then is the stop's own doing)
+        if self.log is not None and not self._stop.is_set():
             self.log.warning(msg, throttle_duration_sec=5.0)
 
     def _connect(self):

@@ -244,6 +244,45 @@ def test_a_stop_while_publishing_is_a_clean_exit(program):
         assert 'Traceback' not in out and 'unexpected' not in out, out[-3000:]
 
 
+@pytest.mark.parametrize('program', ['node', 'demo'])
+def test_a_second_ctrl_c_while_stopping_is_a_clean_exit_that_leaves_no_server(program):
+    """
+    Ctrl-C twice, as an impatient user presses it: exit 0, no traceback, no server left.
+
+    The meshcat server runs in its own session, so only the program's cleanup stops it.
+    Before, the second interrupt landed in that cleanup: the program died of the signal
+    (in 5 of 5 tries), once with a KeyboardInterrupt traceback, and left the server holding
+    port 7000, so the next demo's URL showed that server's stale scene.
+    """
+    import re
+    import signal
+    import socket
+    exe = os.path.join(os.path.dirname(sys.executable), 'hair_sim_' + program)
+    cmd = [exe, '--ros-args', '-p', 'meshcat.enabled:=true'] if program == 'node' else \
+        [exe, '--duration', '60']
+    for k in range(3):
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                text=True)
+        seen, port, start = [], None, time.monotonic()
+        while port is None and time.monotonic() - start < 60.0:
+            seen.append(proc.stdout.readline())
+            m = re.search(r'http://127\.0\.0\.1:(\d+)/static', seen[-1])
+            port = int(m.group(1)) if m else None
+        assert port, ''.join(seen)[-2000:]
+        time.sleep(1.0 + 0.5 * k)
+        proc.send_signal(signal.SIGINT)
+        time.sleep(0.02 * k)
+        proc.send_signal(signal.SIGINT)
+        out = ''.join(seen) + proc.communicate(timeout=30)[0]
+        assert proc.returncode == 0 and 'Traceback' not in out, out[-3000:]
+        assert 'context is invalid' not in out, out[-3000:]
+        probe = socket.socket()
+        try:
+            assert probe.connect_ex(('127.0.0.1', port)) != 0, 'a server still on %d' % port
+        finally:
+            probe.close()
+
+
 def test_the_probe_says_when_a_topic_is_silent_and_refuses_a_window_it_cannot_take():
     """
     With nothing publishing, the probe still prints its JSON but exits 1 naming the topic.
