@@ -6,6 +6,7 @@ the simulation never waits for the browser. The client talks zmq with time-outs,
 missing, killed or slow server is logged and retried, never a hang.
 """
 
+import atexit
 import os
 import re
 import subprocess
@@ -71,7 +72,17 @@ def start_server(host='127.0.0.1'):
         proc.kill()
         raise RuntimeError('the meshcat server did not start')
     threading.Thread(target=_drain, args=(proc,), daemon=True).start()
+    # The server runs in its own session, so nothing stops it but this process: should
+    # this process end without MeshcatSink.stop (an error or a Ctrl-C while the node is
+    # still being built), it is killed at exit rather than left holding its port.
+    atexit.register(_kill_if_running, proc)
     return proc, zmq_url, web_url
+
+
+def _kill_if_running(proc):
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait(timeout=5.0)
 
 
 def _drain(proc):

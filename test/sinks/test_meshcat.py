@@ -176,3 +176,35 @@ def test_camera_looks_from_the_named_view(view, axis):
     horizontal = world[:2] / np.linalg.norm(world[:2])
     assert np.dot(horizontal, np.array(axis[:2]) / np.linalg.norm(axis[:2])) > 0.99
     assert 0.0 < world[2] < 0.2                      # a little above the head's centre
+
+
+@pytest.mark.parametrize('ending', ['return', 'error'])
+def test_a_program_that_ends_without_stopping_the_sink_leaves_no_server(ending):
+    """
+    The meshcat server runs in its own session: only its program can stop it.
+
+    A program that ends without MeshcatSink.stop (an error, or a Ctrl-C while the node is
+    still being built) must not leave it holding its port for the next demo to miss.
+    """
+    import re
+    import socket
+    script = ('from hair_sim.sinks.meshcat_sink import start_server\n'
+              'proc, zmq_url, web_url = start_server()\n'
+              'print(web_url, proc.pid, flush=True)\n'
+              + ('raise RuntimeError("the node failed while being built")\n'
+                 if ending == 'error' else ''))
+    out = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
+                         timeout=60)
+    m = re.search(r'http://127\.0\.0\.1:(\d+)\S* (\d+)', out.stdout)
+    assert m, out.stdout + out.stderr
+    assert (out.returncode != 0) == (ending == 'error'), out.stderr
+    port, pid = int(m.group(1)), int(m.group(2))
+    deadline = time.monotonic() + 5.0
+    while os.path.exists('/proc/%d' % pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not os.path.exists('/proc/%d' % pid), 'the server %d outlived its program' % pid
+    probe = socket.socket()
+    try:
+        assert probe.connect_ex(('127.0.0.1', port)) != 0, 'a server still on %d' % port
+    finally:
+        probe.close()
