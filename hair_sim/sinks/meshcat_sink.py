@@ -191,12 +191,15 @@ class MeshcatSink:
         """
         self._stop.set()
         self._wake.set()
-        if self._server is not None:
-            self._server.kill()
-            self._server.wait(timeout=5.0)
-            self._server = None
+        self._kill_server()
         if self._thread.is_alive():
             self._thread.join(timeout=5.0)
+        self._kill_server()         # (one the worker started as the stop began, if any)
+
+    def _kill_server(self):
+        server, self._server = self._server, None
+        if server is not None:
+            _kill_if_running(server)
 
     def _warn(self, msg):
         # (not once stopping: the node's context may be shut down already, and a failure
