@@ -26,7 +26,7 @@ import os
 import sys
 
 from hair_sim.bench.common import clean, emit
-from hair_sim.physics.params import RANGES
+from hair_sim.physics.params import PhysicsParams
 
 
 PLOTTING = ('accuracy', 'scale', 'stress', 'hanging')     # the commands that write --plots
@@ -68,9 +68,10 @@ def main(argv=None):
     if args.shape_stiffness != 0.0 and (args.command not in ('stress', 'settle')
                                         or args.model != 'articulated'):
         parser.error('--shape-stiffness is for stress and settle with --model articulated')
-    lo, hi = RANGES['shape_stiffness']
-    if not lo <= args.shape_stiffness <= hi:           # (NaN fails this too)
-        parser.error('--shape-stiffness %r is outside [%g, %g]' % (args.shape_stiffness, lo, hi))
+    try:                                    # (the parameter's own check: range, NaN)
+        PhysicsParams().replaced(shape_stiffness=args.shape_stiffness)
+    except ValueError as exc:
+        parser.error('--shape-stiffness: %s' % exc)
     why = plots_folder_problem(args.plots) if args.command in PLOTTING else None
     if why:
         parser.error(why)

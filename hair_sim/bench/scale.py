@@ -209,9 +209,9 @@ def plot(records, plot_dir):
               ('end_to_end_ms', 'end to end (%d steps)' % rs[0]['substeps_per_frame']))
     for key, label in series:
         b.loglog(n, [r[key] for r in rs], 'o-', label=label)
-    for steps, shape, style in ((SUBSTEPS, 0.0, 'v--'), (1, 0.0, '^--'),
-                                (1, STYLED_SHAPE_STIFFNESS, 'd--')):
-        ra = [r for r in records if r['model'] == 'articulated'
+    chains = [c for c in CONFIGS if c[0] == 'articulated']
+    for (model, steps, shape), style in zip(chains, ('v--', '^--', 'd--')):
+        ra = [r for r in records if r['model'] == model
               and r['substeps_per_frame'] == steps and r['shape_stiffness'] == shape]
         b.loglog([r['strips'] for r in ra], [r['physics_frame_ms_mean'] for r in ra], style,
                  label='physics of a frame (mean), articulated%s, %d step%s'

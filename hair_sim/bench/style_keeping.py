@@ -27,27 +27,28 @@ RIDING = 0.05           # m: a tip this far above its place is blown up
 SETTLE_S = 5.0          # s the style gets to settle under the first pose, still air
 
 
-def settled_tips(style, model, dt, shape_stiffness):
-    """Return the tips (head frame) of the style settled under demo(0) in still air."""
+def settled(style, model, dt, shape_stiffness, pose):
+    """Return the simulator of the style at rest under a still pose (at most SETTLE_S), and t."""
     sim = HairSimulator(style, model=model, shape_stiffness=shape_stiffness)
     t = 0.0
-    sim.set_head_pose(t, *demo(0.0))
+    sim.set_head_pose(t, *pose)
     while not sim.sleeping and t < SETTLE_S:
         t += dt
-        sim.set_head_pose(t, *demo(0.0))
+        sim.set_head_pose(t, *pose)
         sim.step(dt)
+    return sim, t
+
+
+def settled_tips(style, model, dt, shape_stiffness):
+    """Return the tips (head frame) of the style settled under demo(0) in still air."""
+    sim, _ = settled(style, model, dt, shape_stiffness, demo(0.0))
     return sim.positions_in_head_frame()[:, -1].copy()
 
 
 def turn_lag(style, model, dt, shape_stiffness):
     """Return how far (m, mean) the tips trail a 90 degree yaw in 0.3 s, at its end."""
-    sim = HairSimulator(style, model=model, shape_stiffness=shape_stiffness)
-    t = 0.0
-    sim.set_head_pose(t, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0])
-    while not sim.sleeping and t < SETTLE_S:
-        t += dt
-        sim.set_head_pose(t, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0])
-        sim.step(dt)
+    sim, t = settled(style, model, dt, shape_stiffness,
+                     ([0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]))
     tips = sim.positions_in_head_frame()[:, -1].copy()
     drive(sim, quarter_turn(t), t, 0.3, dt)
     return float(np.linalg.norm(sim.positions_in_head_frame()[:, -1] - tips, axis=1).mean())

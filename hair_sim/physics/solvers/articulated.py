@@ -1078,6 +1078,7 @@ def step_chains(state,
             # inertia about the joint: (m seg^2 / 3 + cw seg^2 / 4)(1 - d d^T) + I_axial d d^T
             ip = m * seg * seg / 3.0 + 0.25 * cw * seg * seg
             ia = i_ax[s, i]
+            i_swing = m * seg * seg / 3.0 + ia          # the rod's swing about its joint
             j01, j02, j12 = (ia - ip) * dx * dy, (ia - ip) * dx * dz, (ia - ip) * dy * dz
             Jm = (ip + (ia - ip) * dx * dx, j01, j02,
                   j01, ip + (ia - ip) * dy * dy, j12,
@@ -1150,7 +1151,7 @@ def step_chains(state,
                     omega[s, i, 2] - spin[2]
                 qd = qx * dx + qy * dy + qz * dz
                 qx, qy, qz = qx - qd * dx, qy - qd * dy, qz - qd * dz     # across the rod
-                bg = h * h * kg / (m * seg * seg / 3.0 + ia)
+                bg = h * h * kg / i_swing
                 dg = GAMMA * UNRESOLVED_DAMPING * (bg / (1.0 + bg)) ** 4 * h * kg
                 vg = (GAMMA - theta[i]) * h * kg + dg
                 pa0 += kg * g * gx + vg * qx
@@ -1189,7 +1190,7 @@ def step_chains(state,
                 rwz = omega[s, i, 2] - omega[s, i - 1, 2]
             # numerical damping of modes the step cannot resolve, b = h^2 k / I of the joint:
             # across the rod its swing inertia, along it the (tiny) twist inertia
-            bs = h * h * k / (m * seg * seg / 3.0 + ia)
+            bs = h * h * k / i_swing
             bt = h * h * k / ia
             dp = GAMMA * UNRESOLVED_DAMPING * (bs / (1.0 + bs)) ** 4 * h * k
             dt_ = GAMMA * UNRESOLVED_DAMPING * (bt / (1.0 + bt)) ** 4 * h * k
