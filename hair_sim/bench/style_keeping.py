@@ -8,14 +8,16 @@ demo's calm head motion and the gusts hair_sim_head_driver sends (1.5-4 m/s ever
 calm on every third). Per run: how far the tips are from the style settled under the
 same model (head frame) while the gusts blow, and how many strands rest more than 3 cm
 from it once the wind has stopped and the head has been held upright for 10 s. What
-keeping the style costs in motion: how far the tips trail a 90 degree yaw in 0.3 s.
+keeping the style costs in motion: how far the tips trail a 90 degree yaw in 0.3 s, and
+how far they hang over, under their own weight, with the head held tilted ear to shoulder.
 """
 
 import numpy as np
 
 from hair_sim import load_hairstyle, paths
 from hair_sim.bench.common import progress
-from hair_sim.bench.scenarios import demo, demo_gust, drive, GUST_PERIOD, quarter_turn
+from hair_sim.bench.scenarios import (demo, demo_gust, drive, GUST_PERIOD, quarter_turn,
+                                      quat_from_euler)
 from hair_sim.physics.params import STYLED_SHAPE_STIFFNESS
 from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator
 
@@ -25,6 +27,8 @@ RUNS = (('anjyo', DEFAULT_DT, 0.0), ('articulated', DEFAULT_DT, 0.0),
 OFF_STYLE = 0.03        # m: a strand whose tip rests farther than this is off its style
 RIDING = 0.05           # m: a tip this far above its place is blown up
 SETTLE_S = 5.0          # s the style gets to settle under the first pose, still air
+UPRIGHT = ([0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0])
+TILTED = ([0.0, 0.0, 0.0], quat_from_euler(0.5 * np.pi, 0.0, 0.0))   # ear to shoulder
 
 
 def settled(style, model, dt, shape_stiffness, pose):
@@ -47,11 +51,23 @@ def settled_tips(style, model, dt, shape_stiffness):
 
 def turn_lag(style, model, dt, shape_stiffness):
     """Return how far (m, mean) the tips trail a 90 degree yaw in 0.3 s, at its end."""
-    sim, t = settled(style, model, dt, shape_stiffness,
-                     ([0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]))
+    sim, t = settled(style, model, dt, shape_stiffness, UPRIGHT)
     tips = sim.positions_in_head_frame()[:, -1].copy()
     drive(sim, quarter_turn(t), t, 0.3, dt)
     return float(np.linalg.norm(sim.positions_in_head_frame()[:, -1] - tips, axis=1).mean())
+
+
+def tilt_hang(style, model, dt, shape_stiffness):
+    """
+    Return how far (m, mean) the tips hang over when the head is held tilted 90 degrees.
+
+    The style settled with the head rolled ear to shoulder against it settled upright, both
+    in the head frame: how much the hair falls towards the shoulder under its own weight.
+    """
+    upright, _ = settled(style, model, dt, shape_stiffness, UPRIGHT)
+    tilted, _ = settled(style, model, dt, shape_stiffness, TILTED)
+    return float(np.linalg.norm(tilted.positions_in_head_frame()[:, -1]
+                                - upright.positions_in_head_frame()[:, -1], axis=1).mean())
 
 
 def run_one(style, model, dt, gusty_s, still_s, shape_stiffness):
@@ -91,7 +107,8 @@ def run_one(style, model, dt, gusty_s, still_s, shape_stiffness):
             'rest_off_style_mean_m': float(rest.mean()),
             'strands_off_style': int((rest > OFF_STYLE).sum()),
             'retried_steps': int(sim.counters['retried_steps']),
-            'turn_lag_m': turn_lag(style, model, dt, shape_stiffness)}
+            'turn_lag_m': turn_lag(style, model, dt, shape_stiffness),
+            'tilt_hang_m': tilt_hang(style, model, dt, shape_stiffness)}
 
 
 def run(quick=False):

@@ -63,7 +63,9 @@ def test_style_quick(tmp_path):
     model's shape springs, so once the wind stops every strand returns to its style (a
     bench whose wind never blew would show no excursion); the springs also keep the tips
     nearer the style in the gusts than the exact chain at the same step. The exact chain's
-    excursion is what the bench reports, not a pass mark.
+    excursion is what the bench reports, not a pass mark. What the pull costs: with the
+    head held tilted ear to shoulder, the exact chain's long strands hang over towards the
+    shoulder by a good part of their length, the pulled-back runs by a fraction of that.
     """
     from hair_sim.bench.style_keeping import RUNS
     rc, rows = bench('style', tmp_path)
@@ -77,6 +79,8 @@ def test_style_quick(tmp_path):
     assert pulled['tips_off_style_mean_m'] < 0.5 * exact['tips_off_style_mean_m'], rows
     for r in (rows[0], pulled):
         assert r['strands_off_style'] == 0 and r['rest_off_style_mean_m'] < 1e-3, r
+        assert r['tilt_hang_m'] < exact['tilt_hang_m'] / 3.0, rows
+    assert exact['tilt_hang_m'] > 0.1, exact            # (its strands are 0.28-0.29 m long)
 
 
 @pytest.mark.parametrize('args, why', [
