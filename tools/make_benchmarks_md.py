@@ -414,7 +414,7 @@ def issue_size(at_frame):
     r = at_frame.get((200, 20))
     if not r or r.get('tip_rms_vs_mujoco_m') is None:
         return ''
-    return ('At the issue\'s 200 x 20, against MuJoCo alone (PyElastica would take 14 min '
+    return ('At the issue\'s 200 x 20, against MuJoCo alone (PyElastica would take over 10 min '
             'there), they are %.2f mm RMS from it (median %.2f mm) at one step per frame. '
             % (1e3 * r['tip_rms_vs_mujoco_m'], 1e3 * r['tip_median_vs_mujoco_m']))
 
