@@ -115,12 +115,16 @@ class HairSimulator:
                          'diverged': 0,
                          'wall_springs': 0, 'recharts': 0, 'guard_moves': 0, 'wakes': 0,
                          'turn_clamps': 0, 'substeps': 0, 'strand_substeps': 0,
-                         'retried_steps': 0, 'outran_kept': 0}
+                         'retried_steps': 0, 'outran_kept': 0, 'shortened_steps': 0}
         self.last_step_time = 0.0
         self.stability_dt = DEFAULT_DT      # the step set_params checks stability at
         self.state_version = 0              # bumped whenever positions may have changed
         self.layout_version = 0             # bumped whenever a kernel argument's type may change
         self.broad_phase = True             # skip spheres a strand cannot reach
+        # segment-substeps a step may take at most (None: no limit); a step that would take
+        # more simulates less of its time and drops the rest (see step)
+        self.max_step_work = None
+        self.time_dropped = 0.0             # s of input time steps dropped (max_step_work)
         self._last_substeps = 1             # how many substeps each strand took last step
         self._R = np.eye(3)
         self._p = np.zeros(3)
@@ -155,6 +159,8 @@ class HairSimulator:
         self.counters = dict(old.counters)
         self.stability_dt = old.stability_dt
         self.broad_phase = old.broad_phase
+        self.max_step_work = old.max_step_work
+        self.time_dropped = old.time_dropped
         self._R, self._p = old._R.copy(), old._p.copy()
         self._make_solver()
         self._place_at_rest()
@@ -473,11 +479,23 @@ class HairSimulator:
                 and np.abs(self._a).max() < STILL_ACCELERATION)
 
     def step(self, dt=DEFAULT_DT):
-        """Advance the simulation by dt seconds; return False when asleep (no work done)."""
+        """
+        Advance the simulation by dt seconds of input time; return False when asleep.
+
+        With max_step_work set, a step whose substeps would update more segments than
+        that (the articulated model's whipping tips) simulates the share of dt that fits
+        and drops the rest of it, as a driver that falls behind does (skip_time): the
+        head's motion is followed as it was up to there, the pose clock then moves on, and
+        time_dropped counts it. Each substep keeps its length, so stability is unchanged.
+        """
         h = float(dt)
         if not (math.isfinite(h) and 0.0 < h <= MAX_DT):
             raise ValueError('dt must be in (0, %g] s, not %r' % (MAX_DT, dt))
         t0 = _time.perf_counter()
+        h = self._affordable(h)
+        if h < dt:
+            self.counters['shortened_steps'] += 1
+            self.time_dropped += dt - h
         t = self.time + h
         self.counters['steps'] += 1
         moved = self._advance_head(t, h)
@@ -491,6 +509,38 @@ class HairSimulator:
             self.time = t
             self.last_step_time = _time.perf_counter() - t0
             return False
+        try:
+            return self._awake_step(t, h, t0)
+        finally:
+            if h < dt:
+                self.motion.skip(dt - h)          # the dropped time: the pose clock moves on
+
+    def _affordable(self, h):
+        """
+        Return the share of a step of h whose substeps fit max_step_work (h: all of it).
+
+        A strand's substep count grows with the step's length (substeps_for), so the step
+        is cut in proportion, down to one substep of the strand that needs the most. The
+        counts are capped (MAX_SUBSTEPS), so a cut step's counts can still be over: it is
+        cut again, a few times at most.
+        """
+        cap = self.max_step_work
+        if cap is None or self.sleeping:
+            return h
+        for _ in range(4):
+            counts = self.solver.substeps_for(h)
+            finest = int(counts.max())
+            if finest <= 1:
+                return h
+            per_strand = finest * len(counts) if self._joined() else int(counts.sum())
+            work = per_strand * (self.pos.shape[1] - 1)
+            if work <= cap:
+                return h
+            h *= max(cap / work, 1.0 / finest)
+        return h
+
+    def _awake_step(self, t, h, t0):
+        """Simulate the step of h ending at t (awake, begun at perf_counter t0); return True."""
         saved = self._saved() if self.solver.retries_diverged_steps else None
         finite = self._simulated(t, h)
         if saved is not None:
@@ -874,6 +924,7 @@ class HairSimulator:
         # (MAX_PRELOAD) or to keep it stable, and of strands stiffened for stability
         out['stiffened_joints'] = round(getattr(self.solver, 'stiffened', 0.0), 4)
         out['stabilized_strands'] = round(getattr(self.solver, 'stabilized', 0.0), 4)
+        out['time_dropped_s'] = round(self.time_dropped, 3)
         return out
 
 

@@ -67,6 +67,18 @@ MAX_MESSAGE = 300               # characters of a refusal reason sent back
 # oldest beyond it. The default 10 lost loads fired at 40 a second whenever the executor
 # was held up for a quarter of a second; 100 holds 2.5 s of such a stream.
 SERVICE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+# The solver's wall-time credit (s): it earns max_physics_share of the wall time that
+# passes and spends what its steps take, and steps only while it has some. At most this
+# much is saved up (a burst to catch up after a pause), and a step that costs more than
+# the credit (a 1/60 s step of the articulated model in a 40 m/s gale: up to 0.4 s) leaves
+# at most this much owed, so the solver is back within PHYSICS_CREDIT / share s.
+PHYSICS_CREDIT = 0.1
+# A first guess of the wall time (s) of one segment-substep; the node then measures it.
+# A step may update as many as fit in its frame tick's share of the wall time
+# (max_physics_share / frame_rate): the articulated model's substeps grow with how fast
+# its tips whip, and one step of it in a gale took up to 0.4 s, which stopped the outputs
+# for as long; a step cut to what fits simulates less time (HairSimulator.max_step_work).
+SEGMENT_SUBSTEP_S = 1e-6
 
 
 def _descriptor(default, description, rng):
@@ -119,7 +131,8 @@ class HairSimNode(Node):
             self.declare_parameter(name, default, _descriptor(default, description, rng))
         self.counts = Counter({'poses': 0, 'wrong_frame': 0, 'wind': 0, 'wind_rejected': 0,
                                'wind_clamped': 0, 'params_refused': 0, 'overruns': 0,
-                               'published': 0, 'markers_published': 0})
+                               'physics_over_share': 0, 'published': 0,
+                               'markers_published': 0})
         self.refused = Counter()          # refused inputs by kind (in /diagnostics)
         self.errors = Counter()           # unexpected errors caught, by callback
         self._validated = None            # (parameters, derived values) from on_set
@@ -152,6 +165,12 @@ class HairSimNode(Node):
         self._topology_sent = None        # scene version whose topology was last sent
         self._clock_last = None
         self._acc = 0.0
+        self._credit = PHYSICS_CREDIT     # the solver's wall-time credit (s)
+        self._credit_wall = None          # perf_counter() when it was last earned
+        self._over_share_seen = 0         # physics_over_share at the last diagnostics
+        self._segment_s = SEGMENT_SUBSTEP_S   # measured wall time of a segment-substep
+        self._last_drop = None            # perf_counter() of the last frame that dropped time
+        self._last_step = (0.0, 0)        # wall s and substeps of the last step taken
         self.pose_lead = PoseLead()       # how early poses land; slews latency none needs away
         self.meshcat = None
         self.meshcat_url = None
@@ -583,7 +602,14 @@ class HairSimNode(Node):
         self._advance()
 
     def _advance(self):
-        """Step the solver up to the node clock (at most max_steps_per_frame steps)."""
+        """
+        Step the solver up to the node clock (at most max_steps_per_frame steps).
+
+        The solver steps while it has wall-time credit (max_physics_share of the wall
+        time, PHYSICS_CREDIT): the simulated time of the steps it cannot take is dropped,
+        so that a costly step (the articulated model in a gale) slows the hair, not the
+        outputs and the callbacks.
+        """
         now = self.get_clock().now().nanoseconds * 1e-9
         if self._clock_last is None:
             self._clock_last = now
@@ -605,12 +631,54 @@ class HairSimNode(Node):
         step = self.pose_lead.slew(now, elapsed)
         if step > 0.0:                    # poses land early: follow them sooner
             sim.skip_time(step)
+        wall = time.perf_counter()
+        if self._credit_wall is not None:
+            self._credit = min(PHYSICS_CREDIT, self._credit + self._p('max_physics_share')
+                               * (wall - self._credit_wall))
+        self._credit_wall = wall
+        done = 0
+        dropped = sim.time_dropped
+        tick = self._p('max_physics_share') / max(self._p('frame_rate'), self._p('publish_rate'))
         try:
-            for _ in range(n):
-                sim.step(h)
+            while done < n and self._credit > 0.0:
+                sim.max_step_work = max(1, int(tick / self._segment_s))
+                segments = sim.counters['segment_updates']
+                substeps = sim.counters['substeps']
+                t0 = time.perf_counter()
+                try:
+                    sim.step(h)
+                finally:
+                    took = time.perf_counter() - t0
+                    self._credit = max(-PHYSICS_CREDIT, self._credit - took)
+                    done += 1
+                    segments = sim.counters['segment_updates'] - segments
+                    self._last_step = (took, sim.counters['substeps'] - substeps)
+                    if segments >= 1000:          # (a step that did little measures Python)
+                        self._segment_s += 0.2 * (took / segments - self._segment_s)
         except SimulationDiverged as exc:
             self.refused['nonfinite_state_reset'] += 1
             self.get_logger().error('%s (counted)' % exc, throttle_duration_sec=2.0)
+            return
+        if done < n:                      # out of credit: the steps not taken are dropped
+            sim.skip_time((n - done) * h)
+        dropped = (n - done) * h + sim.time_dropped - dropped
+        if dropped > 0.0:
+            # over its share of the wall time: the outputs keep their rates, the hair
+            # falls behind the clock and the time it cannot simulate is dropped. Said when
+            # it lasts (a drop within a second of the last one): a lone one, loading a
+            # kernel's compiled code on its first use, is counted only.
+            self.counts['physics_over_share'] += 1
+            lasts = self._last_drop is not None and wall - self._last_drop < 1.0
+            self._last_drop = wall
+            if not lasts:
+                return
+            self.get_logger().warning(
+                'the %s model\'s last step took %.0f ms and %d substeps: %.0f ms of '
+                'simulated time dropped in this frame, to keep the outputs at rate with the '
+                'solver under %.0f %% of the wall time (counted in physics_over_share)'
+                % (sim.params.model, 1e3 * self._last_step[0], self._last_step[1],
+                   1e3 * dropped, 100 * self._p('max_physics_share')),
+                throttle_duration_sec=5.0)
 
     # -------------------------------------------------------------- outputs
     def _stamp_now(self):
@@ -761,6 +829,11 @@ class HairSimNode(Node):
             values['meshcat_connected'] = str(self.meshcat.connected)
             values['meshcat_frames'] = str(self.meshcat.frames_sent)
             values['meshcat_url'] = self.meshcat_url or ''
+        over = self.counts['physics_over_share']
+        if over > self._over_share_seen:
+            st.level = DiagnosticStatus.WARN
+            st.message += '; over its share of the wall time: simulated time dropped'
+        self._over_share_seen = over
         if self.errors:
             st.level = DiagnosticStatus.WARN
             st.message += '; %d unexpected error(s) caught' % sum(self.errors.values())

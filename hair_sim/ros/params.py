@@ -15,6 +15,9 @@ NODE_PARAMETERS = {
     'sim_rate': (240.0, 'solver steps per simulated second (Hz)', (30.0, 4000.0)),
     'frame_rate': (60.0, 'how often the solver catches up with the clock (Hz)', (5.0, 500.0)),
     'max_steps_per_frame': (16, 'steps at most per frame; time beyond is dropped', (1, 200)),
+    'max_physics_share': (0.6, 'share of the wall time the solver may take on average; '
+                          'simulated time beyond it is dropped (counted) so that the '
+                          'outputs keep their rates', (0.05, 1.0)),
     'publish_rate': (30.0, 'rate of hair_mesh and hair_state, and of meshcat frames at most '
                      '(Hz)', (0.5, 240.0)),
     'marker_rate': (10.0, 'rate of hair_markers (Hz, at most publish_rate); a MarkerArray is '
