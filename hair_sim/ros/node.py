@@ -73,12 +73,18 @@ SERVICE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 # the credit (a 1/60 s step of the articulated model in a 40 m/s gale: up to 0.4 s) leaves
 # at most this much owed, so the solver is back within PHYSICS_CREDIT / share s.
 PHYSICS_CREDIT = 0.1
-# A first guess of the wall time (s) of one segment-substep; the node then measures it.
-# A step may update as many as fit in its frame tick's share of the wall time
-# (max_physics_share / frame_rate): the articulated model's substeps grow with how fast
-# its tips whip, and one step of it in a gale took up to 0.4 s, which stopped the outputs
-# for as long; a step cut to what fits simulates less time (HairSimulator.max_step_work).
+# A first guess of the wall time (s) of one segment-substep; the node then measures it
+# (the median over the last SEGMENT_COST_WINDOW awake steps, each step's wall time over its
+# segment-substeps: a hiccup does not move it, and every awake step updates it). A step
+# may update as many as the solver's credit pays for, and at least as many as fit in its
+# frame tick's share of the wall time (max_physics_share / frame_rate): the articulated
+# model's substeps grow with how fast its tips whip, and one step of it in a gale took up
+# to 0.4 s, which stopped the outputs for as long; a step cut to what fits simulates less
+# time (HairSimulator.max_step_work). A bound from the tick alone cut the demo's steps in
+# its ordinary gusts too, and a per-segment cost measured only on large steps stuck high
+# once steps were cut small: the hair then ran at a tenth of real time after the gale.
 SEGMENT_SUBSTEP_S = 1e-6
+SEGMENT_COST_WINDOW = 64
 
 
 def _descriptor(default, description, rng):
@@ -168,7 +174,7 @@ class HairSimNode(Node):
         self._credit = PHYSICS_CREDIT     # the solver's wall-time credit (s)
         self._credit_wall = None          # perf_counter() when it was last earned
         self._over_share_seen = 0         # physics_over_share at the last diagnostics
-        self._segment_s = SEGMENT_SUBSTEP_S   # measured wall time of a segment-substep
+        self._segment_costs = deque(maxlen=SEGMENT_COST_WINDOW)   # s per segment-substep
         self._last_drop = None            # perf_counter() of the last frame that dropped time
         self._last_step = (0.0, 0)        # wall s and substeps of the last step taken
         self.pose_lead = PoseLead()       # how early poses land; slews latency none needs away
@@ -639,9 +645,11 @@ class HairSimNode(Node):
         done = 0
         dropped = sim.time_dropped
         tick = self._p('max_physics_share') / max(self._p('frame_rate'), self._p('publish_rate'))
+        cost = float(np.median(self._segment_costs)) if self._segment_costs else \
+            SEGMENT_SUBSTEP_S
         try:
             while done < n and self._credit > 0.0:
-                sim.max_step_work = max(1, int(tick / self._segment_s))
+                sim.max_step_work = max(1, int(max(self._credit, tick) / cost))
                 segments = sim.counters['segment_updates']
                 substeps = sim.counters['substeps']
                 t0 = time.perf_counter()
@@ -653,8 +661,8 @@ class HairSimNode(Node):
                     done += 1
                     segments = sim.counters['segment_updates'] - segments
                     self._last_step = (took, sim.counters['substeps'] - substeps)
-                    if segments >= 1000:          # (a step that did little measures Python)
-                        self._segment_s += 0.2 * (took / segments - self._segment_s)
+                    if segments > 0:
+                        self._segment_costs.append(took / segments)
         except SimulationDiverged as exc:
             self.refused['nonfinite_state_reset'] += 1
             self.get_logger().error('%s (counted)' % exc, throttle_duration_sec=2.0)
@@ -818,6 +826,8 @@ class HairSimNode(Node):
         if self.publish_ms:
             values['publish_ms_median'] = '%.3f' % float(np.median(self.publish_ms))
         values['pose_clock_slewed_ms'] = '%.1f' % (1e3 * self.pose_lead.slewed)
+        if self._segment_costs:
+            values['segment_substep_us'] = '%.3f' % (1e6 * np.median(self._segment_costs))
         least = self.pose_lead.least(self.get_clock().now().nanoseconds * 1e-9)
         if least is not None:
             values['pose_lead_ms_min'] = '%.1f' % (1e3 * least)
