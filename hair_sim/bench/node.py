@@ -161,8 +161,92 @@ def load_gap(workdir, duration=6.0):
         node.wait(timeout=15)
 
 
+def _diagnostics(client, ex, fqn='/hair_sim', timeout=5.0):
+    """Return the next /diagnostics values of node fqn ({} if none came in time)."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    got = {}
+
+    def take(msg):
+        for st in msg.status:
+            if st.name == 'hair_sim: %s' % fqn:
+                got.update({kv.key: kv.value for kv in st.values})
+    sub = client.create_subscription(DiagnosticArray, '/diagnostics', take, 10)
+    end = time.monotonic() + timeout
+    while not got and time.monotonic() < end:
+        ex.spin_once(timeout_sec=0.05)
+    client.destroy_subscription(sub)
+    return got
+
+
+def gale(duration=10.0, speed=40.0, turbulence=1.0):
+    """
+    Measure the articulated model at 60 Hz in the strongest wind the node takes, from outside.
+
+    One node (articulated, sim_rate 60) driven by the head driver (its gusts remapped away),
+    measured by a probe process before, during and after a wind of `speed` m/s with
+    `turbulence` that this process publishes at 20 Hz: the rates, the latency, the longest
+    gap, the poses accepted, and the simulated time the node dropped (its solver gets
+    max_physics_share of the wall time; a step in this gale needs up to 0.4 s of substeps).
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from hair_sim_msgs.msg import Wind
+    node = subprocess.Popen(_node_cmd('/', False) + ['-p', 'physics.model:=articulated',
+                                                     '-p', 'sim_rate:=60.0'],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    driver = subprocess.Popen([os.path.join(BIN, 'hair_sim_head_driver'), '--ros-args',
+                               '-r', 'wind:=driver_wind'],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    rclpy.init()
+    client = rclpy.create_node('hair_sim_bench_gale')
+    ex = SingleThreadedExecutor()
+    ex.add_node(client)
+    pub = client.create_publisher(Wind, '/wind', 10)
+    out = {'speed_m_s': speed, 'turbulence': turbulence, 'phases': []}
+    try:
+        time.sleep(5.0)
+        for phase, wind in (('before', 0.0), ('gale', speed), ('after', 0.0)):
+            w = Wind()
+            w.velocity.x, w.velocity.y = wind, (5.0 if wind else 0.0)
+            w.turbulence, w.seed = (turbulence if wind else 0.0), 3
+            dropped0 = float(_diagnostics(client, ex).get('time_dropped_s', 'nan'))
+            probe = _probe(['/'], duration, 1.0, ['hair_mesh', 'hair_state'])
+            end = time.monotonic() + duration + 6.0
+            while probe.poll() is None and time.monotonic() < end + 60.0:
+                if time.monotonic() < end:
+                    pub.publish(w)
+                ex.spin_once(timeout_sec=0.05)
+            report = json.loads(probe.communicate(timeout=60)[0])['/']
+            diag = _diagnostics(client, ex)
+            rec = {'phase': phase, 'wind_m_s': wind}
+            for topic in ('hair_mesh', 'hair_state'):
+                r = report[topic]
+                rec[topic] = {k: r[k] for k in ('rate_hz', 'latency_ms_p95', 'gap_ms_max')}
+            rec['poses_accepted_share'] = report.get('poses_accepted_share')
+            rec['time_dropped_s'] = float(diag.get('time_dropped_s', 'nan')) - dropped0
+            rec['segment_substep_us'] = float(diag.get('segment_substep_us', 'nan'))
+            out['phases'].append(rec)
+            if phase == 'gale':                 # the wind off, and time for the hair to fall
+                w.velocity.x = w.velocity.y = w.turbulence = 0.0
+                end = time.monotonic() + 8.0
+                while time.monotonic() < end:
+                    pub.publish(w)
+                    ex.spin_once(timeout_sec=0.05)
+        return out
+    finally:
+        ex.shutdown()
+        client.destroy_node()
+        rclpy.try_shutdown()
+        for p in (driver, node):
+            p.send_signal(2)
+            try:
+                p.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
 def run(quick=False, max_avatars=8):
-    """Measure 1, 2, ... avatars until one fails its rates; then the load gap."""
+    """Measure 1, 2, ... avatars until one fails its rates; then the load gap and a gale."""
     duration = 5.0 if quick else 10.0
     out = {'runs': [], 'meshcat': None}
     sustained = 0
@@ -177,4 +261,5 @@ def run(quick=False, max_avatars=8):
             sustained = k
         out['avatars_sustained_at_30hz'] = sustained
         out['load_gap'] = load_gap(workdir)
+    out['gale'] = gale(5.0 if quick else 10.0)
     return out

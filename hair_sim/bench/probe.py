@@ -125,6 +125,10 @@ class Probe:
                     if rec['poses_sent_hz'] else None
                 rec['refused_total'] = int(d1.get('refused_total', 0))
                 rec['overruns'] = int(d1.get('overruns', 0)) - int(d0.get('overruns', 0))
+                # simulated time the node dropped to keep its outputs at rate (its solver
+                # over max_physics_share of the wall time), in the window
+                rec['time_dropped_s'] = (_float(d1.get('time_dropped_s')) or 0.0) - \
+                    (_float(d0.get('time_dropped_s')) or 0.0)
                 rec['node_latency_ms_p95'] = _float(d1.get('latency_ms_p95'))
                 rec['model'], rec['sim_rate'] = d1.get('model'), _float(d1.get('sim_rate'))
             out[ns] = rec
