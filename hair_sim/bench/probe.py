@@ -129,6 +129,7 @@ class Probe:
                 # over max_physics_share of the wall time), in the window
                 rec['time_dropped_s'] = (_float(d1.get('time_dropped_s')) or 0.0) - \
                     (_float(d0.get('time_dropped_s')) or 0.0)
+                rec['segment_substep_us'] = _float(d1.get('segment_substep_us'))
                 rec['node_latency_ms_p95'] = _float(d1.get('latency_ms_p95'))
                 rec['model'], rec['sim_rate'] = d1.get('model'), _float(d1.get('sim_rate'))
             out[ns] = rec
