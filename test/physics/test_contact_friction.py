@@ -192,7 +192,7 @@ def test_a_points_responses_along_the_axes_give_its_response_along_any_direction
     """
     from hair_sim.bench.scenarios import violent
     from hair_sim.physics.solvers.articulated import (
-        _point_responses, _response_along, _unit_impulse_response)
+        _lane_to_chain, _point_responses, _response_along, _unit_impulse_response)
     sim = HairSimulator.from_strands(rest_strands(1, 12), head_model(),
                                      **dict(scene_params('articulated'), collisions=False,
                                             root_stiffness_scale=1.0))
@@ -202,9 +202,10 @@ def test_a_points_responses_along_the_axes_give_its_response_along_any_direction
         sim.set_head_pose(t, *violent(t))
         sim.step(1.0 / 60.0)
     sc = sim.solver.scratch
+    n_seg = sim.length.shape[1]
+    _lane_to_chain(sc.W, 0, n_seg, sc)     # the last step's pass of the strand (lane 0)
     chain = (sim.solver.R, sim.length)
     articulated = (sc.Dinv, sc.U_A, sc.U_B)
-    n_seg = sim.length.shape[1]
     rng = np.random.default_rng(3)
     for i in (0, 5, n_seg - 1):
         rc = sim.length[0, i] * 0.7 * sim.solver.R[0, i, :, 2] + rng.normal(0, 1e-3, 3)

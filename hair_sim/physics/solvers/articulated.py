@@ -47,6 +47,9 @@ between joints are pure translations along the rods):
   and a clamped follicle snapped onto it and back until the step diverged;
 - the drift on SO(3): R <- Exp(h omega) R, in two parts around the kick (below).
 
+The strands are stepped eight at a time, one in each lane of the vector registers
+(LANES, step_chains): the same arithmetic, bit for bit, at half the cost.
+
 The spring is taken at its deviation predicted GAMMA h ahead, -k (e + GAMMA h omega_rel+),
 less a damping of the modes the step cannot resolve, -k GAMMA UNRESOLVED_DAMPING (b / (1 +
 b))^4 h omega_rel, b = h^2 k / I: modes the step resolves (b << 1) keep their energy
@@ -109,10 +112,10 @@ is positive definite with STABILITY_MARGIN (`stiffness_to_hold`).
 from collections import namedtuple
 from math import atan2, cos, pi, sin, sqrt
 
-from numba import njit
+from numba import njit, uint64
 import numpy as np
 
-from hair_sim.kernels import njit_without_refcounts
+from hair_sim.kernels import inlined_without_refcounts, njit_without_refcounts
 from hair_sim.physics.forces import (CONTACT_C, CONTACT_FIELDS, CONTACT_K, CONTACT_LEVER,
                                      CONTACT_NX, CONTACT_NY, CONTACT_NZ, CONTACT_SLOTS,
                                      CONTACT_LOAD, CONTACT_LOAD_MID, CONTACT_SPHERE,
@@ -231,7 +234,8 @@ ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', '
                                        'offset', 'air', 'friction', 'sag_by_height',
                                        'shape_k', 'shape_dir'])
 # step_chains' scratch (chain_scratch): per-chain arrays reused for every strand and step
-ChainScratch = namedtuple('ChainScratch', ['Dinv', 'U_A', 'U_B', 'u', 'alpha', 'wm', 'theta',
+ChainScratch = namedtuple('ChainScratch', ['W', 'lanes', 'slots', 'l_guarded', 'l_gnrm',
+                                           'Dinv', 'U_A', 'U_B', 'alpha',
                                            'guarded', 'g_nrm', 'u_imp', 'dw', 'rc_imp',
                                            'lam_imp', 'c_seg', 'c_lever', 'c_nrm', 'c_bound',
                                            'c_load', 'c_lam', 'c_fric', 'c_dw',
@@ -351,28 +355,52 @@ def _apply_both3(a, x, b, y):
             a[6] * x[0] + a[7] * x[1] + a[8] * x[2] + b[6] * y[0] + b[7] * y[1] + b[8] * y[2])
 
 
+# below this squared angle, rotation_series gives Rodrigues' coefficients to 3e-18
+SERIES_TH2 = 0.01
+
+
+@inlined_without_refcounts
+def rotation_series(th2):
+    """
+    Return (sin(th) / th, (1 - cos(th)) / th^2) by their series, for th^2 < SERIES_TH2.
+
+    Under 0.1 rad (twice a substep's turn, MAX_STEP_ROTATION) the next terms are under
+    3e-18. Measured on the hanging scene at 200 x 20: the chain step 0.245 -> 0.219 us a
+    segment, for its two calls of sin and cos per segment; and no cancellation in
+    1 - cos(th). Arithmetic only: a lane loop calling it vectorises.
+    """
+    s = 1.0 - th2 * (1.0 / 6.0 - th2 * (1.0 / 120.0 - th2 * (
+        1.0 / 5040.0 - th2 * (1.0 / 362880.0))))
+    c1 = 0.5 - th2 * (1.0 / 24.0 - th2 * (1.0 / 720.0 - th2 * (
+        1.0 / 40320.0 - th2 * (1.0 / 3628800.0))))
+    return s, c1
+
+
 @njit_without_refcounts
-def rotation_exp(wx, wy, wz):
-    """Return the rotation matrix Exp([w]) of a rotation vector (Rodrigues), a 9-tuple."""
-    th2 = wx * wx + wy * wy + wz * wz
-    if th2 < 0.01:
-        # sin(th) / th and (1 - cos(th)) / th^2 by their series: under 0.1 rad (twice a
-        # substep's turn, MAX_STEP_ROTATION) the next terms are under 3e-18. Measured on
-        # the hanging scene at 200 x 20: the chain step 0.245 -> 0.219 us a segment, for
-        # its two calls of sin and cos per segment; and no cancellation in 1 - cos(th)
-        s = 1.0 - th2 * (1.0 / 6.0 - th2 * (1.0 / 120.0 - th2 * (
-            1.0 / 5040.0 - th2 * (1.0 / 362880.0))))
-        c1 = 0.5 - th2 * (1.0 / 24.0 - th2 * (1.0 / 720.0 - th2 * (
-            1.0 / 40320.0 - th2 * (1.0 / 3628800.0))))
-    else:
-        th = sqrt(th2)
-        s, c1 = sin(th) / th, (1.0 - cos(th)) / th2
+def rotation_coefficients(th2):
+    """Return (sin(th) / th, (1 - cos(th)) / th^2): the series below SERIES_TH2, else libm."""
+    if th2 < SERIES_TH2:
+        return rotation_series(th2)
+    th = sqrt(th2)
+    return sin(th) / th, (1.0 - cos(th)) / th2
+
+
+@inlined_without_refcounts
+def rotation_from(wx, wy, wz, s, c1):
+    """Return Rodrigues' rotation matrix of w from its coefficients s and c1 (a 9-tuple)."""
     return (1.0 - c1 * (wy * wy + wz * wz), c1 * wx * wy - s * wz, c1 * wx * wz + s * wy,
             c1 * wx * wy + s * wz, 1.0 - c1 * (wx * wx + wz * wz), c1 * wy * wz - s * wx,
             c1 * wx * wz - s * wy, c1 * wy * wz + s * wx, 1.0 - c1 * (wx * wx + wy * wy))
 
 
 @njit_without_refcounts
+def rotation_exp(wx, wy, wz):
+    """Return the rotation matrix Exp([w]) of a rotation vector (Rodrigues), a 9-tuple."""
+    s, c1 = rotation_coefficients(wx * wx + wy * wy + wz * wz)
+    return rotation_from(wx, wy, wz, s, c1)
+
+
+@inlined_without_refcounts
 def _orthonormalized(m):
     """
     Return the 9-tuple m with its columns made orthonormal, z (the rod) first.
@@ -392,7 +420,7 @@ def _orthonormalized(m):
             xz, zx * xy - zy * xx, zz)
 
 
-@njit_without_refcounts
+@inlined_without_refcounts
 def twist_free_rotation(Rp, rest_rel, R):
     """
     Return R turned about its own rod axis so that the joint from Rp is a pure bend.
@@ -437,7 +465,7 @@ def twist_free_chains(R, rest_rel, Rh):
             twist_free_frame(Rh if i == 0 else R[s, i - 1], rest_rel[s, i], R[s, i])
 
 
-@njit_without_refcounts
+@inlined_without_refcounts
 def joint_rotation_of(Rp, rest_rel, Ri):
     """Return S = rest_rel^T Rp^T Ri: the joint's rotation from its rest (9-tuples)."""
     return _mul3(_transpose3(_mul3(Rp, rest_rel)), Ri)
@@ -454,8 +482,13 @@ def _bend_angle(vx, vy, vz):
     """Return (theta, sin theta, f = theta / sin theta) of the bend from z to the unit v."""
     st = sqrt(vx * vx + vy * vy)
     t = atan2(st, vz)
-    f = 1.0 + t * t / 6.0 if t < 1e-3 else t / max(st, 1e-300)
-    return t, st, f
+    return t, st, _theta_over_sine(t, st)
+
+
+@inlined_without_refcounts
+def _theta_over_sine(t, st):
+    """Return f = theta / sin(theta) of a bend (its series near 0)."""
+    return 1.0 + t * t / 6.0 if t < 1e-3 else t / max(st, 1e-300)
 
 
 @njit_without_refcounts
@@ -472,7 +505,7 @@ def bend_vector(S):
 
 
 # ------------------------------------------------------------------ the chain step
-@njit_without_refcounts
+@inlined_without_refcounts
 def _preload_weight(t, st, vz):
     """
     Return (sigma, d sigma / d theta) of the bend's preload at bend angle t (see bend_energy).
@@ -510,6 +543,12 @@ def bend_energy(S, e0):
 
 @njit_without_refcounts
 def bend_deviation_of(S, e0):
+    """Return bend_deviation_at the bend's angle theta = atan2(sin(theta), cos(theta))."""
+    return bend_deviation_at(S, e0, atan2(sqrt(S[2] * S[2] + S[5] * S[5]), S[8]))
+
+
+@inlined_without_refcounts
+def bend_deviation_at(S, e0, t):
     """
     Return the bend spring's generalised deviation q (child frame): torque -k R q.
 
@@ -524,10 +563,13 @@ def bend_deviation_of(S, e0):
     rotations, J_r(e)^-T (e - e0) with e = log S, counts the frame's twist as a
     deviation: a sequence of bends twists a frame, and that twist was held for ever.
     Within a step the frames drift off twist-free, so e is taken from v alone.) A rod
-    folded back onto its rest axis (v = -z) gets no torque.
+    folded back onto its rest axis (v = -z) gets no torque. t is the bend's angle theta,
+    atan2(sin(theta), S[8]) (a lane loop takes it from libm in a scalar pass of its own:
+    the rest is arithmetic and selects, and vectorises).
     """
     vx, vy, vz = S[2], S[5], S[8]
-    t, st, f = _bend_angle(vx, vy, vz)
+    st = sqrt(vx * vx + vy * vy)
+    f = _theta_over_sine(t, st)
     if t < 1e-3:
         # near rest: the Cartesian gradient of |e - e0|^2 / 2, with f to O(theta^4)
         wx, wy = -f * vy - e0[0], f * vx - e0[1]      # w = e - e0 (e_z = 0)
@@ -677,7 +719,7 @@ def _response_along(K, tx, ty, tz):
             + tz * (tx * K[0, 2] + ty * K[1, 2] + tz * K[2, 2]))
 
 
-@njit_without_refcounts
+@inlined_without_refcounts
 def _without_relative_spin(w, parent_w, d):
     """
     Return angular velocity w less its spin about the rod axis d relative to parent_w.
@@ -985,6 +1027,797 @@ def strand_swings(R, omega, out):
         out[s] = sqrt(top)
 
 
+# ------------------------------------------------------------------ the chain step, in lanes
+# step_chains steps LANES strands at once, each in a lane of every field of a flat scratch
+# W, in loops over the lanes that LLVM turns into vector instructions (eight strands in one
+# AVX-512 register, two AVX2 ones): a strand's step is a chain of dependent 3x3 products
+# down and up its segments, so one strand at a time waits on its chain, not on arithmetic
+# (measured: one 3x3 product fewer per segment changed nothing), while eight independent
+# chains fill the vector units. The arithmetic of every lane is the scalar step's, operation
+# for operation (no fast-math), so the result is the same bit for bit; where that needs
+# libm (the bend angle's atan2, Rodrigues' sine and cosine past SERIES_TH2), a short scalar
+# pass over the lanes takes it between two vector loops. Measured on the hanging scene at
+# 200 x 20, one step per 60 Hz frame: 0.36 -> 0.18 us a segment-substep (see
+# BENCHMARKS.md). What varies from strand to strand in its control flow (the speculative
+# contacts, the position guard, the impulse that stops inward motion) runs strand by strand
+# on the lane's copy, as it did.
+LANES = 8
+# W holds LANES lanes of each field of n_seg + 1 records: record 0 is the head (the root
+# joint's base: its frames, turn and angular acceleration, the root's position and
+# velocity), record i + 1 segment i. Every lane loop reaches its segment's and its
+# parent's fields at constant offsets from one base, so that LLVM proves them apart and
+# vectorises (fields of a second array, or a field's offset that depends on the segment
+# apart from the base, need run-time overlap checks, and it gave up); indices are unsigned
+# (no wraparound branch).
+G_R0 = 0         # the frame at the step's start (9)
+G_RM = 9         # ... at mid-step (9); the head: at mid-step
+G_OM = 18        # the angular velocity at the step's start (3); the head: its turn
+G_WM = 21        # ... predicted at mid-step (3)
+G_TH = 24        # the share of the drift before the kick
+G_W = 25         # a drift's rotation vector (3)
+G_S = 28         # ... its Rodrigues coefficients sin(th) / th and (1 - cos(th)) / th^2
+G_C1 = 29
+G_DI = 30        # the joint's D^-1 (9)
+G_UA = 39        # U: J (9)
+G_UB = 48        # B (9)
+G_U = 57         # u (3)
+G_AL = 60        # the angular acceleration (3); the head: its own
+G_LA = 63        # the joint's linear acceleration (3)
+G_REST = 66      # rest_rel (9)
+G_LEN = 75       # length
+G_M = 76         # mass
+G_K = 77         # joint stiffness
+G_IAX = 78       # axial inertia
+G_SK = 79        # shape spring
+G_ALP = 80       # the last step's angular acceleration (3)
+G_H = 83         # the lane's step
+G_NC = 84        # contacts of this segment (the record's leading slots)
+G_CT = 85        # their stiffness, damping, lever and normal (CONTACT_SLOTS x 6)
+G_CQ = G_CT + 6 * CONTACT_SLOTS   # the slot being added, and whether the lane has it (7)
+G_FD = G_CQ + 7                   # the distributed force (3)
+G_FE = G_FD + 3                   # the end force (3)
+G_OFF = G_FE + 3                  # the spring's offset (3)
+G_D = G_OFF + 3                   # the joint damper
+G_SD = G_D + 1                    # the shape spring's direction in the head frame (3)
+G_JM = G_SD + 3                   # the body's J, B, M, p_ang, p_lin before the joint
+G_BM = G_JM + 9
+G_MM = G_BM + 9
+G_PA = G_MM + 9
+G_PL = G_PA + 3
+G_CA = G_PL + 3                   # its children's articulated inertia and bias seen at its
+G_CB = G_CA + 9                   # joint (A, B, M, p_ang, p_lin)
+G_CM = G_CB + 9
+G_CPA = G_CM + 9
+G_CPL = G_CPA + 3
+G_SJ = G_CPL + 3                  # the joint's rotation from rest (9)
+G_ST = G_SJ + 9                   # ... its bend's sine
+G_T = G_ST + 1                    # ... and angle
+G_RN = G_T + 1                    # the new frame before the twist is taken out (9)
+G_WN = G_RN + 9                   # the new angular velocity (3)
+G_E = G_WN + 3                    # the end (3); the head: the root
+G_V = G_E + 3                     # its velocity (3); the head: the root's
+G_RF = G_V + 3                    # the new frame (9); the head: at the step's end
+G_WF = G_RF + 9                   # the new angular velocity (3); the head: its turn
+G_RATE = G_WF + 3                 # the end's speed about the start
+SEG_FIELDS = G_RATE + 1
+
+
+@njit_without_refcounts
+def _ix(f, ln):
+    """Return the index in W of lane ln of field f (unsigned: no wraparound branch)."""
+    return uint64(f * LANES + ln)
+
+
+@njit_without_refcounts
+def _get(W, f, ln):
+    return W[_ix(f, ln)]
+
+
+@njit_without_refcounts
+def _get3(W, f, ln):
+    return W[_ix(f, ln)], W[_ix(f + 1, ln)], W[_ix(f + 2, ln)]
+
+
+@njit_without_refcounts
+def _get9(W, f, ln):
+    return (W[_ix(f, ln)], W[_ix(f + 1, ln)], W[_ix(f + 2, ln)],
+            W[_ix(f + 3, ln)], W[_ix(f + 4, ln)], W[_ix(f + 5, ln)],
+            W[_ix(f + 6, ln)], W[_ix(f + 7, ln)], W[_ix(f + 8, ln)])
+
+
+@njit_without_refcounts
+def _put(W, f, ln, x):
+    W[_ix(f, ln)] = x
+
+
+@njit_without_refcounts
+def _put3(W, f, ln, x):
+    W[_ix(f, ln)] = x[0]
+    W[_ix(f + 1, ln)] = x[1]
+    W[_ix(f + 2, ln)] = x[2]
+
+
+@njit_without_refcounts
+def _put9(W, f, ln, m):
+    for a in range(9):
+        W[_ix(f + a, ln)] = m[a]
+
+
+@njit_without_refcounts
+def _rec(i):
+    """Return the first field of segment i's record (-1: the head's)."""
+    return (i + 1) * SEG_FIELDS
+
+
+@njit_without_refcounts
+def _put_turn(W, g, ln, w):
+    """Keep a drift's rotation vector w and its Rodrigues coefficients by their series."""
+    _put3(W, g + G_W, ln, w)
+    s, c1 = rotation_series(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    _put(W, g + G_S, ln, s)
+    _put(W, g + G_C1, ln, c1)
+
+
+@njit_without_refcounts
+def _turn(W, g, ln):
+    """Return the rotation matrix of the drift kept (its coefficients taken)."""
+    wx, wy, wz = _get3(W, g + G_W, ln)
+    return rotation_from(wx, wy, wz, _get(W, g + G_S, ln), _get(W, g + G_C1, ln))
+
+
+@njit_without_refcounts
+def _take_rotation_coefficients(W, i):
+    """Rodrigues' coefficients of the lanes whose drift of segment i turns past the series."""
+    g = _rec(i)
+    for ln in range(LANES):
+        wx, wy, wz = _get3(W, g + G_W, ln)
+        th2 = wx * wx + wy * wy + wz * wz
+        if th2 >= SERIES_TH2:
+            s, c1 = rotation_coefficients(th2)
+            _put(W, g + G_S, ln, s)
+            _put(W, g + G_C1, ln, c1)
+
+
+@njit_without_refcounts
+def _drift_turn(W, i):
+    """Work out the share theta of segment i's drift before the kick, its turn, its rate."""
+    g = _rec(i)
+    for ln in range(LANES):
+        h = _get(W, g + G_H, ln)
+        seg = _get(W, g + G_LEN, ln)
+        bi = h * h * (_get(W, g + G_K, ln) + _get(W, g + G_SK, ln)) / (
+            _get(W, g + G_M, ln) * seg ** 2 / 3.0 + _get(W, g + G_IAX, ln))
+        theta = 0.5 / (1.0 + bi ** 4)
+        ox, oy, oz = _get3(W, g + G_OM, ln)
+        px, py, pz = _get3(W, g + G_ALP, ln)
+        _put3(W, g + G_WM, ln, (ox + theta * h * px, oy + theta * h * py,
+                                oz + theta * h * pz))
+        _put_turn(W, g, ln, (theta * h * ox, theta * h * oy, theta * h * oz))
+        _put(W, g + G_TH, ln, theta)
+
+
+@njit_without_refcounts
+def _drift_to_mid(W, i):
+    """Turn segment i's frame by its drift to mid-step (the coefficients taken)."""
+    g = _rec(i)
+    for ln in range(LANES):
+        _put9(W, g + G_RM, ln, _orthonormalized(_mul3(_turn(W, g, ln), _get9(W, g + G_R0, ln))))
+
+
+@njit_without_refcounts
+def _body_inertia(W, i, air):
+    """
+    Body i of the backward pass: its inertia about its joint, its bias and wrench.
+
+    Writes J, B, M, p_ang, p_lin of the body alone (G_JM .. G_PL); see step_chains.
+    """
+    g = _rec(i)
+    for ln in range(LANES):
+        h = _get(W, g + G_H, ln)
+        seg = _get(W, g + G_LEN, ln)
+        m = _get(W, g + G_M, ln)
+        Ri = _get9(W, g + G_RM, ln)
+        dx, dy, dz = Ri[2], Ri[5], Ri[8]
+        r = (0.5 * seg * dx, 0.5 * seg * dy, 0.5 * seg * dz)
+        # the drag's implicit half as an added mass cw at the centre
+        cw = 0.5 * h * air * m
+        ip = m * seg * seg / 3.0 + 0.25 * cw * seg * seg
+        ia = _get(W, g + G_IAX, ln)
+        j01, j02, j12 = (ia - ip) * dx * dy, (ia - ip) * dx * dz, (ia - ip) * dy * dz
+        Jm = (ip + (ia - ip) * dx * dx, j01, j02,
+              j01, ip + (ia - ip) * dy * dy, j12,
+              j02, j12, ip + (ia - ip) * dz * dz)
+        mc = m + cw
+        Bm = (0.0 * mc, -r[2] * mc, r[1] * mc,          # [r] (m + cw)
+              r[2] * mc, 0.0 * mc, -r[0] * mc,
+              -r[1] * mc, r[0] * mc, 0.0 * mc)
+        Mm = (mc, 0.0, 0.0, 0.0, mc, 0.0, 0.0, 0.0, mc)
+        # velocity-product bias: N_b = w x I_c w + m r x (w x (w x r)), F_b = m w x (w x r)
+        wx, wy, wz = _get3(W, g + G_WM, ln)
+        w = (wx, wy, wz)
+        icp = m * seg * seg / 12.0
+        wd = wx * dx + wy * dy + wz * dz
+        nb = _cross3(w, (icp * (wx - wd * dx) + ia * wd * dx,
+                         icp * (wy - wd * dy) + ia * wd * dy,
+                         icp * (wz - wd * dz) + ia * wd * dz))      # w x I_c w
+        t4 = _cross3(w, _cross3(w, r))                               # w x (w x r)
+        fbx, fby, fbz = m * t4[0], m * t4[1], m * t4[2]
+        # external wrench about the joint: f_dist at the centre, f_end at the end
+        fdx, fdy, fdz = _get3(W, g + G_FD, ln)
+        fex, fey, fez = _get3(W, g + G_FE, ln)
+        nex = r[1] * (fdz + 2.0 * fez) - r[2] * (fdy + 2.0 * fey)
+        ney = r[2] * (fdx + 2.0 * fex) - r[0] * (fdz + 2.0 * fez)
+        nez = r[0] * (fdy + 2.0 * fey) - r[1] * (fdx + 2.0 * fex)
+        nbx = nb[0] + r[1] * fbz - r[2] * fby
+        nby = nb[1] + r[2] * fbx - r[0] * fbz
+        nbz = nb[2] + r[0] * fby - r[1] * fbx
+        _put3(W, g + G_PA, ln, (nbx - nex, nby - ney, nbz - nez))
+        _put3(W, g + G_PL, ln, (fbx - fdx - fex, fby - fdy - fey, fbz - fdz - fez))
+        _put9(W, g + G_JM, ln, Jm)
+        _put9(W, g + G_BM, ln, Bm)
+        _put9(W, g + G_MM, ln, Mm)
+
+
+@njit_without_refcounts
+def _take_contact(W, i, q):
+    """Copy contact q of body i (its record's slot) where _contact_mass reads it (G_CQ)."""
+    g = _rec(i)
+    for ln in range(LANES):
+        for k in range(6):
+            W[_ix(g + G_CQ + k, ln)] = W[_ix(g + G_CT + 6 * q + k, ln)]
+        W[_ix(g + G_CQ + 6, ln)] = q < W[_ix(g + G_NC, ln)]
+
+
+@njit_without_refcounts
+def _contact_mass(W, i):
+    """
+    Add body i's contact taken (_take_contact) as an added mass (GAMMA h^2 k + h c) n n^T.
+
+    The contact (eqs. 7-10, applied explicitly as a force) is stiff for a light segment:
+    its linearisation, F = -(k, c) n n^T (x, v) at the contact point, taken implicitly, so
+    every joint up to the root feels it (the implicit damping of the articulated body; cf.
+    the joints' own springs). Lanes whose segment has fewer contacts add nothing. (A loop
+    of its own, for each slot some lane has, reading its slot at a fixed field: with the
+    slots' loop inside the lanes', or the slot's fields at an offset LLVM does not know
+    from the ones written, the lanes' loop was not vectorised.)
+    """
+    g = _rec(i)
+    for ln in range(LANES):
+        h = _get(W, g + G_H, ln)
+        lv = _get(W, g + G_CQ + 2, ln) * _get(W, g + G_LEN, ln)
+        Ri = _get9(W, g + G_RM, ln)
+        nrm = _get3(W, g + G_CQ + 3, ln)
+        cw = GAMMA * h * h * _get(W, g + G_CQ, ln) + h * _get(W, g + G_CQ + 1, ln)
+        rn = _cross3((lv * Ri[2], lv * Ri[5], lv * Ri[8]), nrm)     # r x n
+        Jm = _get9(W, g + G_JM, ln)
+        Bm = _get9(W, g + G_BM, ln)
+        Mm = _get9(W, g + G_MM, ln)
+        held = _get(W, g + G_CQ + 6, ln) > 0.0
+        _put9(W, g + G_JM, ln, _add3(Jm, _scaled_outer3(cw, rn, rn)) if held else Jm)
+        _put9(W, g + G_BM, ln, _add3(Bm, _scaled_outer3(cw, rn, nrm)) if held else Bm)
+        _put9(W, g + G_MM, ln, _add3(Mm, _scaled_outer3(cw, nrm, nrm)) if held else Mm)
+
+
+@njit_without_refcounts
+def _shape_spring(W, i):
+    """
+    Body i's shape spring: a couple -kg e_g, implicit (see step_chains), where kg > 0.
+
+    Not vectorised (libm's atan2): run only when some lane has shape springs.
+    """
+    g = _rec(i)
+    for ln in range(LANES):
+        kg = _get(W, g + G_SK, ln)
+        if kg <= 0.0:
+            continue
+        h = _get(W, g + G_H, ln)
+        seg = _get(W, g + G_LEN, ln)
+        m = _get(W, g + G_M, ln)
+        ia = _get(W, g + G_IAX, ln)
+        i_swing = m * seg * seg / 3.0 + ia
+        theta = _get(W, g + G_TH, ln)
+        Ri = _get9(W, g + G_RM, ln)
+        dx, dy, dz = Ri[2], Ri[5], Ri[8]
+        sx, sy, sz = _get3(W, g + G_SD, ln)
+        sd = _apply3(_get9(W, G_RM, ln), sx, sy, sz)     # under the head at mid-step
+        gx = sd[1] * dz - sd[2] * dy                     # sd x d
+        gy = sd[2] * dx - sd[0] * dz
+        gz = sd[0] * dy - sd[1] * dx
+        sn = sqrt(gx * gx + gy * gy + gz * gz)
+        ang = atan2(sn, sd[0] * dx + sd[1] * dy + sd[2] * dz)
+        gg = ang / sn if sn > 1e-15 else 0.0
+        ox, oy, oz = _get3(W, g + G_OM, ln)
+        hx, hy, hz = _get3(W, G_OM, ln)                   # the head's turn
+        qx, qy, qz = ox - hx, oy - hy, oz - hz
+        qd = qx * dx + qy * dy + qz * dz
+        qx, qy, qz = qx - qd * dx, qy - qd * dy, qz - qd * dz     # across the rod
+        bg = h * h * kg / i_swing
+        dg = GAMMA * UNRESOLVED_DAMPING * (bg / (1.0 + bg)) ** 4 * h * kg
+        vg = (GAMMA - theta) * h * kg + dg
+        pa0, pa1, pa2 = _get3(W, g + G_PA, ln)
+        _put3(W, g + G_PA, ln, (pa0 + (kg * gg * gx + vg * qx),
+                                pa1 + (kg * gg * gy + vg * qy),
+                                pa2 + (kg * gg * gz + vg * qz)))
+        cg = GAMMA * h * h * kg + h * dg
+        _put9(W, g + G_JM, ln, _add3(_get9(W, g + G_JM, ln), (
+            cg * (1.0 - dx * dx), -cg * dx * dy, -cg * dx * dz,
+            -cg * dx * dy, cg * (1.0 - dy * dy), -cg * dy * dz,
+            -cg * dx * dz, -cg * dy * dz, cg * (1.0 - dz * dz))))
+
+
+@njit_without_refcounts
+def _joint_rotation(W, i):
+    """Joint i's rotation from its rest at mid-step, and its bend's sine."""
+    g = _rec(i)
+    p = g - SEG_FIELDS
+    for ln in range(LANES):
+        S = joint_rotation_of(_get9(W, p + G_RM, ln), _get9(W, g + G_REST, ln),
+                              _get9(W, g + G_RM, ln))
+        _put9(W, g + G_SJ, ln, S)
+        _put(W, g + G_ST, ln, sqrt(S[2] * S[2] + S[5] * S[5]))
+
+
+@njit_without_refcounts
+def _bend_angles(W, i):
+    """Joint i's bend angle, by libm's atan2 (a scalar pass between two vector loops)."""
+    g = _rec(i)
+    for ln in range(LANES):
+        _put(W, g + G_T, ln, atan2(_get(W, g + G_ST, ln), _get(W, g + G_SJ + 8, ln)))
+
+
+@njit_without_refcounts
+def _joint(W, i, has_child):
+    """Joint i of the backward pass: D^-1, U, u, and what its parent sees of it and beyond."""
+    g = _rec(i)
+    p = g - SEG_FIELDS
+    for ln in range(LANES):
+        h = _get(W, g + G_H, ln)
+        seg = _get(W, g + G_LEN, ln)
+        m = _get(W, g + G_M, ln)
+        ia = _get(W, g + G_IAX, ln)
+        i_swing = m * seg * seg / 3.0 + ia          # the rod's swing about its joint
+        theta = _get(W, g + G_TH, ln)
+        Jm = _get9(W, g + G_JM, ln)
+        Bm = _get9(W, g + G_BM, ln)
+        Mm = _get9(W, g + G_MM, ln)
+        pa0, pa1, pa2 = _get3(W, g + G_PA, ln)
+        pl0, pl1, pl2 = _get3(W, g + G_PL, ln)
+        if has_child:
+            # plus the child's articulated inertia and bias, already moved to this joint
+            Jm = _add3(Jm, _get9(W, g + G_CA, ln))
+            Bm = _add3(Bm, _get9(W, g + G_CB, ln))
+            Mm = _add3(Mm, _get9(W, g + G_CM, ln))
+            ca = _get3(W, g + G_CPA, ln)
+            cl = _get3(W, g + G_CPL, ln)
+            pa0 += ca[0]
+            pa1 += ca[1]
+            pa2 += ca[2]
+            pl0 += cl[0]
+            pl1 += cl[1]
+            pl2 += cl[2]
+        # ball joint i: spring and damper on the relative rotation, implicit part c
+        Ri = _get9(W, g + G_RM, ln)
+        dx, dy, dz = Ri[2], Ri[5], Ri[8]
+        e = bend_deviation_at(_get9(W, g + G_SJ, ln), _get3(W, g + G_OFF, ln),
+                              _get(W, g + G_T, ln))
+        k = _get(W, g + G_K, ln)
+        dd = _get(W, g + G_D, ln)
+        # the implicit spring and damper work from the start-of-step velocities (the
+        # head's record holds its turn)
+        ox, oy, oz = _get3(W, g + G_OM, ln)
+        px, py, pz = _get3(W, p + G_OM, ln)
+        rwx, rwy, rwz = ox - px, oy - py, oz - pz
+        # numerical damping of modes the step cannot resolve, b = h^2 k / I of the joint:
+        # across the rod its swing inertia, along it the (tiny) twist inertia
+        bs = h * h * k / i_swing
+        bt = h * h * k / ia
+        dp = GAMMA * UNRESOLVED_DAMPING * (bs / (1.0 + bs)) ** 4 * h * k
+        dt_ = GAMMA * UNRESOLVED_DAMPING * (bt / (1.0 + bt)) ** 4 * h * k
+        # the spring at its deviation predicted GAMMA h ahead, -k (e + GAMMA h w_rel+):
+        # the drift before the kick supplied theta h w_rel of it, this the rest, across
+        # the rod (stable when the substep count changes: see the module text)
+        sp = (GAMMA - theta) * h * k
+        da = dd + dp + sp                    # across the rod
+        rd = (rwx * dx + rwy * dy + rwz * dz) * (dt_ - dp - sp)
+        tqx = -k * (Ri[0] * e[0] + Ri[1] * e[1] + Ri[2] * e[2]) - da * rwx - rd * dx
+        tqy = -k * (Ri[3] * e[0] + Ri[4] * e[1] + Ri[5] * e[2]) - da * rwy - rd * dy
+        tqz = -k * (Ri[6] * e[0] + Ri[7] * e[1] + Ri[8] * e[2]) - da * rwz - rd * dz
+        # the damping is implicit too: D gets h times the damping (anisotropic)
+        cj = GAMMA * h * h * k + h * (dd + dp)
+        ct = h * (dt_ - dp)
+        d01, d02, d12 = Jm[1] + ct * dx * dy, Jm[2] + ct * dx * dz, Jm[5] + ct * dy * dz
+        Sm = _without_twist(_inverse_sym3((Jm[0] + cj + ct * dx * dx, d01, d02,
+                                           d01, Jm[4] + cj + ct * dy * dy, d12,
+                                           d02, d12, Jm[8] + cj + ct * dz * dz)),
+                            dx, dy, dz)
+        _put9(W, g + G_DI, ln, Sm)
+        _put9(W, g + G_UA, ln, Jm)
+        _put9(W, g + G_UB, ln, Bm)
+        u = (tqx - pa0, tqy - pa1, tqz - pa2)
+        _put3(W, g + G_U, ln, u)
+        # apparent inertia through the joint: I^a = I^A - U D^-1 U^T, U = [J; B^T]; the
+        # root's parent, the head, takes it and keeps nothing of it
+        Aa = _sub3(Jm, _mul3(Jm, _mul3(Sm, Jm)))
+        SB = _mul3(Sm, Bm)
+        Ba = _sub3(Bm, _mul3(Jm, SB))
+        Ma = _sub3(Mm, _mul3(_transpose3(Bm), SB))
+        # bias: p^a = p^A + I^a c + U D^-1 u, c = [0; w_p x (w_p x a_p)] (a_p: parent rod)
+        lp = _get(W, p + G_LEN, ln)
+        Rq = _get9(W, p + G_RM, ln)
+        ax, ay, az = lp * Rq[2], lp * Rq[5], lp * Rq[8]
+        wx, wy, wz = _get3(W, p + G_WM, ln)
+        cx, cy, cz = wy * az - wz * ay, wz * ax - wx * az, wx * ay - wy * ax
+        cx, cy, cz = wy * cz - wz * cy, wz * cx - wx * cz, wx * cy - wy * cx
+        y0, y1, y2 = _apply3(Sm, u[0], u[1], u[2])
+        qa0, qa1, qa2 = _apply_both3(Ba, (cx, cy, cz), Jm, (y0, y1, y2))
+        ql0, ql1, ql2 = _apply_both3(Ma, (cx, cy, cz), _transpose3(Bm), (y0, y1, y2))
+        qa0, qa1, qa2 = pa0 + qa0, pa1 + qa1, pa2 + qa2
+        ql0, ql1, ql2 = pl0 + ql0, pl1 + ql1, pl2 + ql2
+        # move to the parent's joint, a_p back along the parent rod:
+        # A' = A - B[a] + [a]B^T - [a]M[a], B' = B + [a]M, M' = M, p'_ang = p_ang + a x p_lin
+        Ka = (0.0, -az, ay, az, 0.0, -ax, -ay, ax, 0.0)
+        KM = _mul3(Ka, Ma)
+        Ap = _sub3(_add3(_sub3(Aa, _mul3(Ba, Ka)), _mul3(Ka, _transpose3(Ba))),
+                   _mul3(KM, Ka))
+        _put9(W, p + G_CA, ln, Ap)
+        _put9(W, p + G_CB, ln, _add3(Ba, KM))
+        _put9(W, p + G_CM, ln, Ma)
+        _put3(W, p + G_CPA, ln, (qa0 + ay * ql2 - az * ql1, qa1 + az * ql0 - ax * ql2,
+                                 qa2 + ax * ql1 - ay * ql0))
+        _put3(W, p + G_CPL, ln, (ql0, ql1, ql2))
+
+
+@njit_without_refcounts
+def _accelerations(W, i):
+    """Joint i of the forward pass: q'' = D^-1 (u - J alpha_p - B a_p), root to tip."""
+    g = _rec(i)
+    p = g - SEG_FIELDS
+    for ln in range(LANES):
+        ax_, ay_, az_ = _get3(W, p + G_AL, ln)
+        lx, ly, lz = _get3(W, g + G_LA, ln)       # (the root's: the head's motion there)
+        if i > 0:
+            lx, ly, lz = _get3(W, p + G_LA, ln)
+            lp = _get(W, p + G_LEN, ln)
+            Rq = _get9(W, p + G_RM, ln)
+            bx, by, bz = lp * Rq[2], lp * Rq[5], lp * Rq[8]
+            wx, wy, wz = _get3(W, p + G_WM, ln)
+            cx = wy * bz - wz * by
+            cy = wz * bx - wx * bz
+            cz = wx * by - wy * bx
+            lx += ay_ * bz - az_ * by + wy * cz - wz * cy
+            ly += az_ * bx - ax_ * bz + wz * cx - wx * cz
+            lz += ax_ * by - ay_ * bx + wx * cy - wy * cx
+        y0, y1, y2 = _apply_both3(_get9(W, g + G_UA, ln), (ax_, ay_, az_),
+                                  _get9(W, g + G_UB, ln), (lx, ly, lz))
+        u0, u1, u2 = _get3(W, g + G_U, ln)
+        a0, a1, a2 = _apply3(_get9(W, g + G_DI, ln), u0 - y0, u1 - y1, u2 - y2)
+        _put3(W, g + G_AL, ln, (a0 + ax_, a1 + ay_, a2 + az_))
+        _put3(W, g + G_LA, ln, (lx, ly, lz))
+
+
+@njit_without_refcounts
+def _kick_turn(W, i):
+    """Segment i's kick, and the turn of the rest of its drift."""
+    g = _rec(i)
+    for ln in range(LANES):
+        h = _get(W, g + G_H, ln)
+        ox, oy, oz = _get3(W, g + G_OM, ln)
+        ax, ay, az = _get3(W, g + G_AL, ln)
+        wx = ox + h * ax
+        wy = oy + h * ay
+        wz = oz + h * az
+        _put3(W, g + G_WN, ln, (wx, wy, wz))
+        f = (1.0 - _get(W, g + G_TH, ln)) * h                     # the rest of the drift
+        _put_turn(W, g, ln, (f * wx, f * wy, f * wz))
+
+
+@njit_without_refcounts
+def _drift_to_end(W, i):
+    """Turn segment i's frame by the rest of its drift; its end, before the guard."""
+    g = _rec(i)
+    p = g - SEG_FIELDS
+    for ln in range(LANES):
+        Rn = _orthonormalized(_mul3(_turn(W, g, ln), _get9(W, g + G_RM, ln)))
+        seg = _get(W, g + G_LEN, ln)
+        px, py, pz = _get3(W, p + G_E, ln)
+        _put9(W, g + G_RN, ln, Rn)
+        _put3(W, g + G_E, ln, (px + seg * Rn[2], py + seg * Rn[5], pz + seg * Rn[8]))
+
+
+@njit_without_refcounts
+def _place(W, i):
+    """Segment i's frame without twist, its spin taken out, its end's velocity and rate."""
+    g = _rec(i)
+    p = g - SEG_FIELDS
+    for ln in range(LANES):
+        Rn = _get9(W, g + G_RN, ln)
+        # 2-DOF joints: a pure bend from the parent (already placed), no twist
+        Rf = twist_free_rotation(_get9(W, p + G_RF, ln), _get9(W, g + G_REST, ln), Rn)
+        # ... and no spin about the rod relative to its parent (it moves no vertex)
+        pw = _get3(W, p + G_WF, ln)
+        wx, wy, wz = _without_relative_spin(_get3(W, g + G_WN, ln), pw, (Rn[2], Rn[5], Rn[8]))
+        seg = _get(W, g + G_LEN, ln)
+        bx, by, bz = seg * Rn[2], seg * Rn[5], seg * Rn[8]
+        vx, vy, vz = _get3(W, p + G_V, ln)
+        vx += wy * bz - wz * by
+        vy += wz * bx - wx * bz
+        vz += wx * by - wy * bx
+        qx, qy, qz = wx - pw[0], wy - pw[1], wz - pw[2]
+        _put(W, g + G_RATE, ln, seg * sqrt(qx * qx + qy * qy + qz * qz))
+        _put9(W, g + G_RF, ln, Rf)
+        _put3(W, g + G_WF, ln, (wx, wy, wz))
+        _put3(W, g + G_V, ln, (vx, vy, vz))
+
+
+@njit_without_refcounts
+def _load_segment(W, lanes, i, state, strands, forces, shaped):
+    """Copy what the phases read of segment i of each lane's strand into W; return slots."""
+    R, omega, alpha_prev, rest_rel = state.R, state.omega, state.alpha, state.rest_rel
+    kj, i_ax, shape_k = state.k, state.inertia_axial, state.shape_k
+    offset, dj, shape_dir = state.offset, state.d, state.shape_dir
+    f_dist, f_end, contact = forces.f_dist, forces.f_end, forces.contact
+    length, mass = strands.length, strands.mass
+    g = _rec(i)
+    slots = 0                   # the most contacts a lane's segment i has
+    for ln in range(LANES):
+        s = lanes[ln]
+        for a in range(3):
+            for b in range(3):
+                W[_ix(g + G_R0 + 3 * a + b, ln)] = R[s, i, a, b]
+                W[_ix(g + G_REST + 3 * a + b, ln)] = rest_rel[s, i, a, b]
+            W[_ix(g + G_OM + a, ln)] = omega[s, i, a]
+            W[_ix(g + G_ALP + a, ln)] = alpha_prev[s, i, a]
+            W[_ix(g + G_FD + a, ln)] = f_dist[s, i, a]
+            W[_ix(g + G_FE + a, ln)] = f_end[s, i, a]
+            W[_ix(g + G_OFF + a, ln)] = offset[s, i, a]
+            if shaped:
+                W[_ix(g + G_SD + a, ln)] = shape_dir[s, i, a]
+        W[_ix(g + G_LEN, ln)] = length[s, i]
+        W[_ix(g + G_M, ln)] = mass[s, i]
+        W[_ix(g + G_K, ln)] = kj[s, i]
+        W[_ix(g + G_IAX, ln)] = i_ax[s, i]
+        W[_ix(g + G_SK, ln)] = shape_k[s, i]
+        W[_ix(g + G_D, ln)] = dj[s, i]
+        W[_ix(g + G_H, ln)] = W[_ix(G_H, ln)]
+        n_c = 0
+        for q in range(CONTACT_SLOTS):
+            slot = q * CONTACT_FIELDS
+            kc = contact[s, i, slot + CONTACT_K]
+            cc = contact[s, i, slot + CONTACT_C]
+            if kc + cc <= 0.0:
+                break
+            f = g + G_CT + 6 * q
+            W[_ix(f, ln)] = kc
+            W[_ix(f + 1, ln)] = cc
+            W[_ix(f + 2, ln)] = contact[s, i, slot + CONTACT_LEVER]
+            W[_ix(f + 3, ln)] = contact[s, i, slot + CONTACT_NX]
+            W[_ix(f + 4, ln)] = contact[s, i, slot + CONTACT_NY]
+            W[_ix(f + 5, ln)] = contact[s, i, slot + CONTACT_NZ]
+            n_c += 1
+        W[_ix(g + G_NC, ln)] = n_c
+        slots = max(slots, n_c)
+    return slots
+
+
+@njit_without_refcounts
+def _lane_to_chain(W, ln, n_seg, sc):
+    """Copy lane ln's articulated pass (D^-1, U, alpha) into the per-chain scratch sc."""
+    for i in range(n_seg):
+        g = _rec(i)
+        for a in range(3):
+            for b in range(3):
+                sc.Dinv[i, a, b] = W[_ix(g + G_DI + 3 * a + b, ln)]
+                sc.U_A[i, a, b] = W[_ix(g + G_UA + 3 * a + b, ln)]
+                sc.U_B[i, a, b] = W[_ix(g + G_UB + 3 * a + b, ln)]
+            sc.alpha[i, a] = W[_ix(g + G_AL + a, ln)]
+
+
+@njit_without_refcounts
+def _guard_lane(W, ln, i, start, seg, spheres, mask, sag_by_height, sc):
+    """
+    Guard lane ln's segment i (forces.guard_segment); return whether it moved the end.
+
+    Turns the rod minimally onto the guarded direction, and keeps where the end was moved
+    (sc.l_guarded, sc.l_gnrm) for the impulse that stops its inward motion.
+    """
+    g = _rec(i)
+    px, py, pz = start
+    ex, ey, ez = _get3(W, g + G_E, ln)
+    gx, gy, gz, moved = guard_segment((px, py, pz), (ex, ey, ez), seg, spheres, mask,
+                                      GUARD_LIFT, sag_by_height)
+    if not moved:
+        return False
+    Rn = _get9(W, g + G_RN, ln)
+    ox, oy, oz = Rn[2], Rn[5], Rn[8]
+    nx, ny, nz = (gx - px) / seg, (gy - py) / seg, (gz - pz) / seg
+    ax, ay, az = oy * nz - oz * ny, oz * nx - ox * nz, ox * ny - oy * nx
+    sn = sqrt(ax ** 2 + ay ** 2 + az ** 2)
+    cs = ox * nx + oy * ny + oz * nz
+    if sn > 1e-15:
+        ang = np.arctan2(sn, cs)
+        turn = rotation_exp(ax / sn * ang, ay / sn * ang, az / sn * ang)
+        _put9(W, g + G_RN, ln, _orthonormalized(_mul3(turn, Rn)))
+    # the velocity is mended after the chain is placed, by an impulse through the
+    # articulated inertias (_stop_inward_motion); changing this rod's angular velocity
+    # alone moved every vertex beyond with it and pumped energy into draped strands
+    # (hanging scene: 19 mm from MuJoCo)
+    gn = sqrt((gx - ex) ** 2 + (gy - ey) ** 2 + (gz - ez) ** 2)
+    if gn > 1e-15:
+        sc.l_guarded[ln, i] = True
+        sc.l_gnrm[ln, i, 0] = (gx - ex) / gn
+        sc.l_gnrm[ln, i, 1] = (gy - ey) / gn
+        sc.l_gnrm[ln, i, 2] = (gz - ez) / gn
+    _put3(W, g + G_E, ln, (gx, gy, gz))
+    return True
+
+
+@njit_without_refcounts
+def _step_lanes(state,
+                strands,
+                forces,
+                head,
+                base,
+                bodies,
+                collide,
+                timing,
+                sc,
+                n_valid):
+    """
+    Step the strands sc.lanes[:n_valid] together (the other lanes repeat the last one).
+
+    Returns (the guard's moves, the fastest end speed about its start). See step_chains.
+    """
+    R, omega, alpha_prev = state.R, state.omega, state.alpha
+    pos, pos_prev, vel, length = strands.pos, strands.pos_prev, strands.vel, strands.length
+    roots, root_vel, root_acc = base
+    spheres, masks = bodies.spheres, bodies.masks
+    strand_h, strand_t = timing
+    W, lanes = sc.W, sc.lanes
+    n_seg = length.shape[1]
+    spin = head.turn
+    shaped = False
+    for ln in range(LANES):
+        s = lanes[ln]
+        W[_ix(G_H, ln)] = strand_h[s]
+        for i in range(n_seg):
+            if state.shape_k[s, i] > 0.0:
+                shaped = True
+    # ---------------- part of the drift: the configuration at mid-step (Stormer-Verlet).
+    # A joint too stiff for the step (b = h^2 k / I >> 1) takes its force at the start
+    # instead (symplectic Euler), and its mid-step velocity prediction fades likewise.
+    for i in range(n_seg):
+        sc.slots[i] = _load_segment(W, lanes, i, state, strands, forces, shaped)
+        _drift_turn(W, i)
+        _take_rotation_coefficients(W, i)
+        _drift_to_mid(W, i)
+    # The head between its poses (it turns at head.turn over the step; head.R is its pose
+    # at the step's end, head.t): the base of the root joint where the strand's
+    # configuration is, at mid-step, and at the end of its own step; the head's record
+    Rh = _load3(head.R)
+    for ln in range(LANES):
+        s = lanes[ln]
+        lag = head.t - strand_t[s]
+        _put9(W, G_RF, ln, _mul3(rotation_exp(-lag * spin[0], -lag * spin[1],
+                                              -lag * spin[2]), Rh))
+        lag += (1.0 - W[_ix(_rec(0) + G_TH, ln)]) * W[_ix(G_H, ln)]
+        _put9(W, G_RM, ln, _mul3(rotation_exp(-lag * spin[0], -lag * spin[1],
+                                              -lag * spin[2]), Rh))
+        _put3(W, G_OM, ln, (spin[0], spin[1], spin[2]))
+        _put3(W, G_WF, ln, (spin[0], spin[1], spin[2]))
+        _put3(W, G_WM, ln, (0.0, 0.0, 0.0))
+        _put3(W, G_AL, ln, (head.alpha[0], head.alpha[1], head.alpha[2]))
+        _put3(W, _rec(0) + G_LA, ln, (root_acc[s, 0], root_acc[s, 1], root_acc[s, 2]))
+        _put3(W, G_E, ln, (roots[s, 0], roots[s, 1], roots[s, 2]))
+        _put3(W, G_V, ln, (root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]))
+        _put(W, G_LEN, ln, 0.0)
+    # ---------------- backward pass: articulated inertias, tip to root; forward pass
+    for i in range(n_seg - 1, -1, -1):
+        _body_inertia(W, i, state.air)
+        for q in range(sc.slots[i]):
+            _take_contact(W, i, q)
+            _contact_mass(W, i)
+        if shaped:
+            _shape_spring(W, i)
+        _joint_rotation(W, i)
+        _bend_angles(W, i)
+        _joint(W, i, i < n_seg - 1)
+    for i in range(n_seg):
+        _accelerations(W, i)
+    # ---------------- contacts before the drift, strand by strand
+    if collide:
+        contact = forces.contact
+        for ln in range(n_valid):
+            s = lanes[ln]
+            touching = False
+            for i in range(n_seg):
+                if contact[s, i, CONTACT_K] + contact[s, i, CONTACT_C] > 0.0:
+                    touching = True
+                    break
+            if not touching:
+                continue
+            for i in range(n_seg):
+                for a in range(3):
+                    for b in range(3):
+                        R[s, i, a, b] = W[_ix(_rec(i) + G_RM + 3 * a + b, ln)]
+            _lane_to_chain(W, ln, n_seg, sc)
+            _speculative_contacts(s,
+                                  contact,
+                                  (R, omega, length),
+                                  (roots, root_vel),
+                                  head,
+                                  spheres,
+                                  (sc.Dinv, sc.U_A, sc.U_B),
+                                  (sc.u_imp, sc.rc_imp, sc.c_seg, sc.c_lever, sc.c_nrm,
+                                   sc.c_bound, sc.c_load, sc.c_lam, sc.c_fric, sc.c_dw,
+                                   sc.c_dvn, sc.c_dwb, sc.c_K),
+                                  sc.alpha,
+                                  W[_ix(G_H, ln)],
+                                  state.friction)
+            for i in range(n_seg):
+                for a in range(3):
+                    W[_ix(_rec(i) + G_AL + a, ln)] = sc.alpha[i, a]
+    # ---------------- the kick, the rest of the drift, the guard, the placed chain
+    for ln in range(n_valid):
+        s = lanes[ln]
+        for a in range(3):
+            pos_prev[s, 0, a] = pos[s, 0, a]
+            pos[s, 0, a] = roots[s, a]
+            vel[s, 0, a] = root_vel[s, a]
+    guards = 0
+    guarded = False
+    for i in range(n_seg):
+        g = _rec(i)
+        _kick_turn(W, i)
+        _take_rotation_coefficients(W, i)
+        _drift_to_end(W, i)
+        if collide:
+            for ln in range(n_valid):
+                s = lanes[ln]
+                sc.l_guarded[ln, i] = False
+                if masks[s] != 0 and _guard_lane(W, ln, i, _get3(W, g - SEG_FIELDS + G_E, ln),
+                                                 length[s, i], spheres, masks[s],
+                                                 state.sag_by_height, sc):
+                    guards += 1
+                    guarded = True
+        _place(W, i)
+        for ln in range(n_valid):
+            s = lanes[ln]
+            for a in range(3):
+                for b in range(3):
+                    R[s, i, a, b] = W[_ix(g + G_RF + 3 * a + b, ln)]
+                omega[s, i, a] = W[_ix(g + G_WF + a, ln)]
+                alpha_prev[s, i, a] = W[_ix(g + G_AL + a, ln)]
+                pos_prev[s, i + 1, a] = pos[s, i + 1, a]
+                pos[s, i + 1, a] = W[_ix(g + G_E + a, ln)]
+                vel[s, i + 1, a] = W[_ix(g + G_V + a, ln)]
+    if guarded:
+        for ln in range(n_valid):
+            n_guarded = 0
+            for i in range(n_seg):
+                sc.guarded[i] = sc.l_guarded[ln, i]
+                n_guarded += sc.guarded[i]
+                for a in range(3):
+                    sc.g_nrm[i, a] = sc.l_gnrm[ln, i, a]
+            if n_guarded == 0:
+                continue
+            _lane_to_chain(W, ln, n_seg, sc)
+            _stop_inward_motion(lanes[ln],
+                                (sc.guarded, sc.g_nrm),
+                                (R, omega, length),
+                                (roots, root_vel),
+                                head,
+                                (sc.Dinv, sc.U_A, sc.U_B),
+                                (sc.u_imp, sc.dw, sc.rc_imp, sc.lam_imp),
+                                vel)
+    top = 0.0
+    for ln in range(n_valid):
+        for i in range(n_seg):
+            rate = W[_ix(_rec(i) + G_RATE, ln)]
+            if rate > top:                          # (NaN never counts)
+                top = rate
+    return guards, top
+
+
 @njit_without_refcounts
 def step_chains(state,
                 strands,
@@ -1002,369 +1835,42 @@ def step_chains(state,
     Advance each strand's chain by its own step (articulated-body algorithm).
 
     timing is (strand_h, strand_t): each strand's step (0: it waits) and when it ends.
-
-    See the module text; a strand whose strand_h is 0 waits (the simulator's multirate).
+    The strands that move are stepped LANES at a time (the last lanes of the last group
+    repeat its last strand and are not written back); see the module text and LANES.
 
     Reads the shared per-segment forces (world), the head's motion (base of every chain),
     writes the new orientations, angular velocities, vertices and vertex velocities. The
     position guard turns a segment out of a sphere, and a contact impulse stops its end's
     inward motion through the whole chain. Returns the segments updated.
     """
-    R, omega, rest_rel, kj, dj = state.R, state.omega, state.rest_rel, state.k, state.d
-    shape_k, shape_dir = state.shape_k, state.shape_dir
-    offset = state.offset
-    alpha_prev = state.alpha
-    i_ax = state.inertia_axial
-    pos, pos_prev, vel, length, mass = (strands.pos, strands.pos_prev, strands.vel,
-                                        strands.length, strands.mass)
-    f_dist, f_end, contact = forces.f_dist, forces.f_end, forces.contact
-    spheres, masks = bodies.spheres, bodies.masks
-    n_s, n_seg = length.shape
-    # per-chain scratch (reused for every strand; see chain_scratch)
-    sc = scratch
-    Dinv = sc.Dinv
-    U_A, U_B, u, alpha, wm, theta = sc.U_A, sc.U_B, sc.u, sc.alpha, sc.wm, sc.theta
-    guarded, g_nrm, u_imp = sc.guarded, sc.g_nrm, sc.u_imp
-    dw, rc_imp, lam_imp, c_seg, c_lever = sc.dw, sc.rc_imp, sc.lam_imp, sc.c_seg, sc.c_lever
-    c_nrm, c_bound, c_load, c_lam = sc.c_nrm, sc.c_bound, sc.c_load, sc.c_lam
-    c_fric, c_dw, c_dvn = sc.c_fric, sc.c_dw, sc.c_dvn
-    c_dwb, c_K = sc.c_dwb, sc.c_K
-    max_rate = 0.0
+    strand_h = timing[0]
+    n_s, n_seg = strands.length.shape
+    lanes = scratch.lanes
+    base = (roots, root_vel, root_acc)
     guards = 0
-    Rh = _load3(head.R)
-    strand_h, strand_t = timing
-    spin = head.turn
+    top = 0.0
     updated = 0
-    for s in range(n_s):
-        h = strand_h[s]
-        if h <= 0.0:
-            continue
-        updated += n_seg
-        # ---------------- part of the drift: the configuration at mid-step (Stormer-Verlet).
-        # A joint too stiff for the step (b = h^2 k / I >> 1) takes its force at the start
-        # instead (symplectic Euler), and its mid-step velocity prediction fades likewise.
-        for i in range(n_seg):
-            bi = h * h * (kj[s, i] + shape_k[s, i]) / (mass[s, i] * length[s, i] ** 2 / 3.0
-                                                       + i_ax[s, i])
-            theta[i] = 0.5 / (1.0 + bi ** 4)
-            for a in range(3):
-                wm[i, a] = omega[s, i, a] + theta[i] * h * alpha_prev[s, i, a]
-            turn = rotation_exp(theta[i] * h * omega[s, i, 0], theta[i] * h * omega[s, i, 1],
-                                theta[i] * h * omega[s, i, 2])
-            _store3(_orthonormalized(_mul3(turn, _load3(R[s, i]))), R[s, i])
-        # The head between its poses (it turns at head.turn over the step; head.R is its
-        # pose at the step's end, head.t): the base of the root joint where the strand's
-        # configuration is, at mid-step (Rb_mid), and at the end of its own step (Rb_end)
-        lag = head.t - strand_t[s]
-        Rb_end = _mul3(rotation_exp(-lag * spin[0], -lag * spin[1], -lag * spin[2]), Rh)
-        lag += (1.0 - theta[0]) * h
-        Rb_mid = _mul3(rotation_exp(-lag * spin[0], -lag * spin[1], -lag * spin[2]), Rh)
-        # ---------------- backward pass: articulated inertias, tip to root
-        # (3x3 blocks as row-major 9-tuples, vectors as 3-tuples: they stay in registers;
-        # child_*: the articulated inertia and bias of the segment below, seen at its parent)
-        child_A = child_B = child_M = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        child_pa = child_pl = (0.0, 0.0, 0.0)
-        for i in range(n_seg - 1, -1, -1):
-            seg = length[s, i]
-            m = mass[s, i]
-            dx, dy, dz = R[s, i, 0, 2], R[s, i, 1, 2], R[s, i, 2, 2]
-            r = (0.5 * seg * dx, 0.5 * seg * dy, 0.5 * seg * dz)
-            # Air drag -c v at the centre, c = air m: applied at the start-of-step velocity
-            # by the shared forces; half of it again on the velocity change, as an added
-            # mass cw = h c / 2 at the centre, makes it -c (v + v+) / 2 (trapezoidal: second
-            # order, and stable at any rate). The body's inertia is then that of mass m + cw
-            # with the added part at the centre (its weight and velocity products stay m's).
-            cw = 0.5 * h * state.air * m
-            # inertia about the joint: (m seg^2 / 3 + cw seg^2 / 4)(1 - d d^T) + I_axial d d^T
-            ip = m * seg * seg / 3.0 + 0.25 * cw * seg * seg
-            ia = i_ax[s, i]
-            i_swing = m * seg * seg / 3.0 + ia          # the rod's swing about its joint
-            j01, j02, j12 = (ia - ip) * dx * dy, (ia - ip) * dx * dz, (ia - ip) * dy * dz
-            Jm = (ip + (ia - ip) * dx * dx, j01, j02,
-                  j01, ip + (ia - ip) * dy * dy, j12,
-                  j02, j12, ip + (ia - ip) * dz * dz)
-            mc = m + cw
-            Bm = (0.0 * mc, -r[2] * mc, r[1] * mc,          # [r] (m + cw)
-                  r[2] * mc, 0.0 * mc, -r[0] * mc,
-                  -r[1] * mc, r[0] * mc, 0.0 * mc)
-            Mm = (mc, 0.0, 0.0, 0.0, mc, 0.0, 0.0, 0.0, mc)
-            # A contact (eqs. 7-10, applied explicitly as a force) is stiff for a light
-            # segment: its linearisation, F = -(k, c) n n^T (x, v) at the contact point,
-            # is taken implicitly as an added mass (GAMMA h^2 k + h c) n n^T there, so
-            # every joint up to the root feels it (the implicit damping of the articulated
-            # body; cf. the joints' own springs).
-            for q in range(CONTACT_SLOTS):                # every contact the segment has
-                slot = q * CONTACT_FIELDS
-                kc = contact[s, i, slot + CONTACT_K]
-                cc = contact[s, i, slot + CONTACT_C]
-                if kc + cc <= 0.0:
-                    break
-                lv = contact[s, i, slot + CONTACT_LEVER] * seg
-                nrm = (contact[s, i, slot + CONTACT_NX], contact[s, i, slot + CONTACT_NY],
-                       contact[s, i, slot + CONTACT_NZ])
-                cw = GAMMA * h * h * kc + h * cc
-                rn = _cross3((lv * dx, lv * dy, lv * dz), nrm)     # r x n
-                # J += -[r] Mc [r] = cw (r x n)(r x n)^T; B += [r] Mc; M += Mc
-                Jm = _add3(Jm, _scaled_outer3(cw, rn, rn))
-                Bm = _add3(Bm, _scaled_outer3(cw, rn, nrm))
-                Mm = _add3(Mm, _scaled_outer3(cw, nrm, nrm))
-            # velocity-product bias: N_b = w x I_c w + m r x (w x (w x r)), F_b = m w x (w x r)
-            wx, wy, wz = wm[i, 0], wm[i, 1], wm[i, 2]
-            w = (wx, wy, wz)
-            icp = m * seg * seg / 12.0
-            wd = wx * dx + wy * dy + wz * dz
-            nb = _cross3(w, (icp * (wx - wd * dx) + ia * wd * dx,
-                             icp * (wy - wd * dy) + ia * wd * dy,
-                             icp * (wz - wd * dz) + ia * wd * dz))      # w x I_c w
-            t4 = _cross3(w, _cross3(w, r))                               # w x (w x r)
-            fbx, fby, fbz = m * t4[0], m * t4[1], m * t4[2]
-            # external wrench about the joint: f_dist at the centre, f_end at the end
-            fdx, fdy, fdz = f_dist[s, i, 0], f_dist[s, i, 1], f_dist[s, i, 2]
-            fex, fey, fez = f_end[s, i, 0], f_end[s, i, 1], f_end[s, i, 2]
-            nex = r[1] * (fdz + 2.0 * fez) - r[2] * (fdy + 2.0 * fey)
-            ney = r[2] * (fdx + 2.0 * fex) - r[0] * (fdz + 2.0 * fez)
-            nez = r[0] * (fdy + 2.0 * fey) - r[1] * (fdx + 2.0 * fex)
-            # r x (m w x (w x r)) joins N_b
-            nbx = nb[0] + r[1] * fbz - r[2] * fby
-            nby = nb[1] + r[2] * fbx - r[0] * fbz
-            nbz = nb[2] + r[0] * fby - r[1] * fbx
-            pa0, pa1, pa2 = nbx - nex, nby - ney, nbz - nez
-            pl0, pl1, pl2 = fbx - fdx - fex, fby - fdy - fey, fbz - fdz - fez
-            kg = shape_k[s, i]
-            if kg > 0.0:
-                # The shape spring: a couple -kg e_g on the rod, e_g the rotation taking its
-                # modeled direction under the head (sd) to its direction d. It depends on the
-                # rod's own absolute angular acceleration alone, so it is implicit like the
-                # joints' springs: taken at its deviation predicted GAMMA h ahead, the
-                # h^2 GAMMA kg part is an added inertia across the rod (a pure couple: the
-                # same about any point, so in J alone), the rest a damping of the turn
-                # relative to the head; and the same numerical damping of modes the step
-                # cannot resolve (b = h^2 kg / I).
-                sd = _apply3(Rb_mid, shape_dir[s, i, 0], shape_dir[s, i, 1], shape_dir[s, i, 2])
-                gx = sd[1] * dz - sd[2] * dy                     # sd x d
-                gy = sd[2] * dx - sd[0] * dz
-                gz = sd[0] * dy - sd[1] * dx
-                sn = sqrt(gx * gx + gy * gy + gz * gz)
-                ang = atan2(sn, sd[0] * dx + sd[1] * dy + sd[2] * dz)
-                g = ang / sn if sn > 1e-15 else 0.0
-                qx, qy, qz = omega[s, i, 0] - spin[0], omega[s, i, 1] - spin[1], \
-                    omega[s, i, 2] - spin[2]
-                qd = qx * dx + qy * dy + qz * dz
-                qx, qy, qz = qx - qd * dx, qy - qd * dy, qz - qd * dz     # across the rod
-                bg = h * h * kg / i_swing
-                dg = GAMMA * UNRESOLVED_DAMPING * (bg / (1.0 + bg)) ** 4 * h * kg
-                vg = (GAMMA - theta[i]) * h * kg + dg
-                pa0 += kg * g * gx + vg * qx
-                pa1 += kg * g * gy + vg * qy
-                pa2 += kg * g * gz + vg * qz
-                cg = GAMMA * h * h * kg + h * dg
-                Jm = _add3(Jm, (cg * (1.0 - dx * dx), -cg * dx * dy, -cg * dx * dz,
-                                -cg * dx * dy, cg * (1.0 - dy * dy), -cg * dy * dz,
-                                -cg * dx * dz, -cg * dy * dz, cg * (1.0 - dz * dz)))
-            # plus the child's articulated inertia and bias, already moved to this joint
-            if i < n_seg - 1:
-                Jm = _add3(Jm, child_A)
-                Bm = _add3(Bm, child_B)
-                Mm = _add3(Mm, child_M)
-                pa0 += child_pa[0]
-                pa1 += child_pa[1]
-                pa2 += child_pa[2]
-                pl0 += child_pl[0]
-                pl1 += child_pl[1]
-                pl2 += child_pl[2]
-            # ball joint i: spring and damper on the relative rotation, implicit part c
-            Rp = Rb_mid if i == 0 else _load3(R[s, i - 1])
-            Ri = _load3(R[s, i])
-            e = bend_deviation_of(joint_rotation_of(Rp, _load3(rest_rel[s, i]), Ri),
-                                  offset[s, i])
-            k = kj[s, i]
-            dd = dj[s, i]
-            # the implicit spring and damper work from the start-of-step velocities
-            if i == 0:
-                rwx = omega[s, i, 0] - spin[0]
-                rwy = omega[s, i, 1] - spin[1]
-                rwz = omega[s, i, 2] - spin[2]
-            else:
-                rwx = omega[s, i, 0] - omega[s, i - 1, 0]
-                rwy = omega[s, i, 1] - omega[s, i - 1, 1]
-                rwz = omega[s, i, 2] - omega[s, i - 1, 2]
-            # numerical damping of modes the step cannot resolve, b = h^2 k / I of the joint:
-            # across the rod its swing inertia, along it the (tiny) twist inertia
-            bs = h * h * k / i_swing
-            bt = h * h * k / ia
-            dp = GAMMA * UNRESOLVED_DAMPING * (bs / (1.0 + bs)) ** 4 * h * k
-            dt_ = GAMMA * UNRESOLVED_DAMPING * (bt / (1.0 + bt)) ** 4 * h * k
-            # the spring at its deviation predicted GAMMA h ahead, -k (e + GAMMA h w_rel+):
-            # the drift before the kick supplied theta h w_rel of it, this the rest, across
-            # the rod (stable when the substep count changes: see the module text)
-            sp = (GAMMA - theta[i]) * h * k
-            da = dd + dp + sp                    # across the rod
-            rd = (rwx * dx + rwy * dy + rwz * dz) * (dt_ - dp - sp)
-            tqx = -k * (Ri[0] * e[0] + Ri[1] * e[1] + Ri[2] * e[2]) - da * rwx - rd * dx
-            tqy = -k * (Ri[3] * e[0] + Ri[4] * e[1] + Ri[5] * e[2]) - da * rwy - rd * dy
-            tqz = -k * (Ri[6] * e[0] + Ri[7] * e[1] + Ri[8] * e[2]) - da * rwz - rd * dz
-            # the damping is implicit too: D gets h times the damping (anisotropic)
-            cj = GAMMA * h * h * k + h * (dd + dp)
-            ct = h * (dt_ - dp)
-            d01, d02, d12 = Jm[1] + ct * dx * dy, Jm[2] + ct * dx * dz, Jm[5] + ct * dy * dz
-            Sm = _without_twist(_inverse_sym3((Jm[0] + cj + ct * dx * dx, d01, d02,
-                                               d01, Jm[4] + cj + ct * dy * dy, d12,
-                                               d02, d12, Jm[8] + cj + ct * dz * dz)),
-                                dx, dy, dz)
-            _store3(Sm, Dinv[i])
-            _store3(Jm, U_A[i])
-            _store3(Bm, U_B[i])
-            u[i, 0], u[i, 1], u[i, 2] = tqx - pa0, tqy - pa1, tqz - pa2
-            if i == 0:
-                break                       # the head takes the root joint's wrench
-            # apparent inertia through the joint: I^a = I^A - U D^-1 U^T, U = [J; B^T]
-            # (3x3 blocks as 9-tuples, row-major: they stay in registers)
-            Aa = _sub3(Jm, _mul3(Jm, _mul3(Sm, Jm)))
-            SB = _mul3(Sm, Bm)
-            Ba = _sub3(Bm, _mul3(Jm, SB))
-            Ma = _sub3(Mm, _mul3(_transpose3(Bm), SB))
-            # bias: p^a = p^A + I^a c + U D^-1 u, c = [0; w_p x (w_p x a_p)] (a_p: parent rod)
-            lp = length[s, i - 1]
-            ax, ay, az = lp * R[s, i - 1, 0, 2], lp * R[s, i - 1, 1, 2], lp * R[s, i - 1, 2, 2]
-            wx, wy, wz = wm[i - 1, 0], wm[i - 1, 1], wm[i - 1, 2]
-            cx, cy, cz = wy * az - wz * ay, wz * ax - wx * az, wx * ay - wy * ax
-            cx, cy, cz = wy * cz - wz * cy, wz * cx - wx * cz, wx * cy - wy * cx
-            y0, y1, y2 = _apply3(Sm, u[i, 0], u[i, 1], u[i, 2])
-            qa0, qa1, qa2 = _apply_both3(Ba, (cx, cy, cz), Jm, (y0, y1, y2))
-            ql0, ql1, ql2 = _apply_both3(Ma, (cx, cy, cz), _transpose3(Bm), (y0, y1, y2))
-            qa0, qa1, qa2 = pa0 + qa0, pa1 + qa1, pa2 + qa2
-            ql0, ql1, ql2 = pl0 + ql0, pl1 + ql1, pl2 + ql2
-            # move to the parent's joint, a_p back along the parent rod:
-            # A' = A - B[a] + [a]B^T - [a]M[a], B' = B + [a]M, M' = M, p'_ang = p_ang + a x p_lin
-            Ka = (0.0, -az, ay, az, 0.0, -ax, -ay, ax, 0.0)
-            KM = _mul3(Ka, Ma)
-            Ap = _sub3(_add3(_sub3(Aa, _mul3(Ba, Ka)), _mul3(Ka, _transpose3(Ba))),
-                       _mul3(KM, Ka))
-            child_A, child_B, child_M = Ap, _add3(Ba, KM), Ma
-            child_pa = (qa0 + ay * ql2 - az * ql1, qa1 + az * ql0 - ax * ql2,
-                        qa2 + ax * ql1 - ay * ql0)
-            child_pl = (ql0, ql1, ql2)
-        # ---------------- forward pass: accelerations, root to tip
-        ax_, ay_, az_ = head.alpha[0], head.alpha[1], head.alpha[2]
-        lx, ly, lz = root_acc[s, 0], root_acc[s, 1], root_acc[s, 2]
-        for i in range(n_seg):
-            if i > 0:
-                lp = length[s, i - 1]
-                bx, by, bz = lp * R[s, i - 1, 0, 2], lp * R[s, i - 1, 1, 2], \
-                    lp * R[s, i - 1, 2, 2]
-                px_, py_, pz_ = alpha[i - 1, 0], alpha[i - 1, 1], alpha[i - 1, 2]
-                wx, wy, wz = wm[i - 1, 0], wm[i - 1, 1], wm[i - 1, 2]
-                cx = wy * bz - wz * by
-                cy = wz * bx - wx * bz
-                cz = wx * by - wy * bx
-                lx += py_ * bz - pz_ * by + wy * cz - wz * cy
-                ly += pz_ * bx - px_ * bz + wz * cx - wx * cz
-                lz += px_ * by - py_ * bx + wx * cy - wy * cx
-                ax_, ay_, az_ = px_, py_, pz_
-            # q'' = D^-1 (u - J alpha_p - B a_p)
-            y0, y1, y2 = _apply_both3(_load3(U_A[i]), (ax_, ay_, az_), _load3(U_B[i]),
-                                      (lx, ly, lz))
-            alpha[i, 0], alpha[i, 1], alpha[i, 2] = _apply3(_load3(Dinv[i]), u[i, 0] - y0,
-                                                            u[i, 1] - y1, u[i, 2] - y2)
-            alpha[i, 0] += ax_
-            alpha[i, 1] += ay_
-            alpha[i, 2] += az_
-        if collide:
-            _speculative_contacts(s,
-                                  contact,
-                                  (R, omega, length),
-                                  (roots, root_vel),
-                                  head,
-                                  spheres,
-                                  (Dinv, U_A, U_B),
-                                  (u_imp, rc_imp, c_seg, c_lever, c_nrm, c_bound, c_load,
-                                   c_lam, c_fric, c_dw, c_dvn, c_dwb, c_K),
-                                  alpha,
-                                  h,
-                                  state.friction)
-        # ---------------- integrate, place the vertices, guard
-        for j in range(n_seg + 1):
-            pos_prev[s, j, 0] = pos[s, j, 0]
-            pos_prev[s, j, 1] = pos[s, j, 1]
-            pos_prev[s, j, 2] = pos[s, j, 2]
-        px, py, pz = roots[s, 0], roots[s, 1], roots[s, 2]
-        vx, vy, vz = root_vel[s, 0], root_vel[s, 1], root_vel[s, 2]
-        pos[s, 0, 0], pos[s, 0, 1], pos[s, 0, 2] = px, py, pz
-        vel[s, 0, 0], vel[s, 0, 1], vel[s, 0, 2] = vx, vy, vz
-        mask = masks[s] if collide else np.int64(0)
-        n_guarded = 0
-        for i in range(n_seg):
-            guarded[i] = False
-            wx = omega[s, i, 0] + h * alpha[i, 0]
-            wy = omega[s, i, 1] + h * alpha[i, 1]
-            wz = omega[s, i, 2] + h * alpha[i, 2]
-            f = (1.0 - theta[i]) * h                                   # the rest of the drift
-            Rn = _orthonormalized(_mul3(rotation_exp(f * wx, f * wy, f * wz), _load3(R[s, i])))
-            seg = length[s, i]
-            ex = px + seg * Rn[2]
-            ey = py + seg * Rn[5]
-            ez = pz + seg * Rn[8]
-            if mask != 0:
-                gx, gy, gz, moved = guard_segment((px, py, pz), (ex, ey, ez), seg, spheres, mask,
-                                                  GUARD_LIFT, state.sag_by_height)
-                if moved:
-                    # turn the rod minimally onto the guarded direction
-                    ox, oy, oz = Rn[2], Rn[5], Rn[8]
-                    nx, ny, nz = (gx - px) / seg, (gy - py) / seg, (gz - pz) / seg
-                    ax, ay, az = oy * nz - oz * ny, oz * nx - ox * nz, ox * ny - oy * nx
-                    sn = sqrt(ax ** 2 + ay ** 2 + az ** 2)
-                    cs = ox * nx + oy * ny + oz * nz
-                    if sn > 1e-15:
-                        ang = np.arctan2(sn, cs)
-                        Rn = _orthonormalized(_mul3(rotation_exp(ax / sn * ang, ay / sn * ang,
-                                                                 az / sn * ang), Rn))
-                    # the velocity is mended after the chain is placed, by an impulse
-                    # through the articulated inertias (_stop_inward_motion); changing this
-                    # rod's angular velocity alone moved every vertex beyond with it and
-                    # pumped energy into draped strands (hanging scene: 19 mm from MuJoCo)
-                    gn = sqrt((gx - ex) ** 2 + (gy - ey) ** 2 + (gz - ez) ** 2)
-                    if gn > 1e-15:
-                        guarded[i] = True
-                        n_guarded += 1
-                        g_nrm[i, 0], g_nrm[i, 1], g_nrm[i, 2] = \
-                            (gx - ex) / gn, (gy - ey) / gn, (gz - ez) / gn
-                    ex, ey, ez = gx, gy, gz
-                    guards += 1
-            # 2-DOF joints: a pure bend from the parent (already placed), no twist
-            _store3(twist_free_rotation(Rb_end if i == 0 else _load3(R[s, i - 1]),
-                                        _load3(rest_rel[s, i]), Rn), R[s, i])
-            # ... and no spin about the rod relative to its parent (it moves no vertex)
-            parent_w = (spin[0], spin[1], spin[2]) if i == 0 else \
-                (omega[s, i - 1, 0], omega[s, i - 1, 1], omega[s, i - 1, 2])
-            wx, wy, wz = _without_relative_spin((wx, wy, wz), parent_w, (Rn[2], Rn[5], Rn[8]))
-            omega[s, i, 0], omega[s, i, 1], omega[s, i, 2] = wx, wy, wz
-            alpha_prev[s, i, 0], alpha_prev[s, i, 1], alpha_prev[s, i, 2] = \
-                alpha[i, 0], alpha[i, 1], alpha[i, 2]
-            bx, by, bz = seg * Rn[2], seg * Rn[5], seg * Rn[8]
-            vx += wy * bz - wz * by
-            vy += wz * bx - wx * bz
-            vz += wx * by - wy * bx
-            pos[s, i + 1, 0], pos[s, i + 1, 1], pos[s, i + 1, 2] = ex, ey, ez
-            vel[s, i + 1, 0], vel[s, i + 1, 1], vel[s, i + 1, 2] = vx, vy, vz
-            if i == 0:
-                qx, qy, qz = wx - spin[0], wy - spin[1], wz - spin[2]
-            else:
-                qx, qy, qz = wx - omega[s, i - 1, 0], wy - omega[s, i - 1, 1], \
-                    wz - omega[s, i - 1, 2]
-            rate = seg * sqrt(qx * qx + qy * qy + qz * qz)
-            if rate > max_rate:
-                max_rate = rate
-            px, py, pz = ex, ey, ez
-        if n_guarded > 0:
-            _stop_inward_motion(s,
-                                (guarded, g_nrm),
-                                (R, omega, length),
-                                (roots, root_vel),
-                                head,
-                                (Dinv, U_A, U_B),
-                                (u_imp, dw, rc_imp, lam_imp),
-                                vel)
-    stats[MAX_RATE] = max_rate
+    n = 0
+    for s in range(n_s + 1):
+        if s < n_s:
+            if strand_h[s] <= 0.0:
+                continue
+            lanes[n] = s
+            n += 1
+            updated += n_seg
+            if n < LANES:
+                continue
+        elif n == 0:
+            break
+        for ln in range(n, LANES):
+            lanes[ln] = lanes[n - 1]
+        moves, rate = _step_lanes(state, strands, forces, head, base, bodies, collide, timing,
+                                  scratch, n)
+        guards += moves
+        if rate > top:
+            top = rate
+        n = 0
+    stats[MAX_RATE] = top
     stats[GUARD_MOVES] += guards
     return updated
 
@@ -1619,13 +2125,15 @@ def chain_scratch(n_seg):
     """
     n_c = 2 * n_seg * CONTACT_SLOTS          # the speculative contacts, at most
     return ChainScratch(
-        Dinv=np.zeros((n_seg, 3, 3)),
+        W=np.zeros((n_seg + 1) * SEG_FIELDS * LANES),  # the lanes (see LANES)
+        lanes=np.zeros(LANES, dtype=np.int64),  # the strand in each lane
+        slots=np.zeros(n_seg, dtype=np.int64),  # the most contacts a lane's segment has
+        l_guarded=np.zeros((LANES, n_seg), dtype=np.bool_),  # per lane: the guard moved
+        l_gnrm=np.zeros((LANES, n_seg, 3)),  # ... the end, along l_gnrm
+        Dinv=np.zeros((n_seg, 3, 3)),  # one lane's articulated pass, for its contacts
         U_A=np.zeros((n_seg, 3, 3)),
         U_B=np.zeros((n_seg, 3, 3)),
-        u=np.zeros((n_seg, 3)),
         alpha=np.zeros((n_seg, 3)),
-        wm=np.zeros((n_seg, 3)),  # angular velocities predicted at mid-step
-        theta=np.zeros(n_seg),  # share of the drift before the force
         guarded=np.zeros(n_seg, dtype=np.bool_),  # contacts of this step: the guard moved
         g_nrm=np.zeros((n_seg, 3)),  # ... the end, along g_nrm
         u_imp=np.zeros((n_seg, 3)),
