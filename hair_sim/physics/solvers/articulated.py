@@ -1919,8 +1919,10 @@ def chain_step(state,
         t = t_end - h + (k + 1) * h / n
         multirate_substep((t_end, h, n), k, counts, strand_h, strand_t)
         for s in range(n_s):
-            if mid_step:
-                # each strand at the middle of its own substep (one waiting: of its next)
+            if mid_step and strand_h[s] > 0.0:
+                # each strand that moves at the middle of its own substep (the forces of
+                # one that waits are neither taken nor read: strands joined by springs,
+                # whose springs read them all, all move in every substep)
                 half = 0.5 * (h / counts[s])
                 for j in range(n_v):
                     for a in range(3):
