@@ -463,12 +463,15 @@ def speed_target(cost, accuracy, at_frame, tip_z):
             'capsule chain (the reference) %.0f and %.0f times. Its absolute figures, '
             "0.045 and 0.9 s/s, came from the flexes as measured when the issue was filed "
             '(0.89 and 17.7 s/s; %s here, with their edges held by equality '
-            'constraints so that they do not stretch as they fall%s): %.2f and %.2f s/s are '
-            'still over them, about 2.3 substeps a strand a frame over the 2 s fall (1 each '
-            'once the strands hang; 2.8 before the joint springs were mended for a changing '
-            'step, when the counts\' own switching kept strands lying on the head moving) at '
-            'about 0.58 us per segment-substep, forces included (2026-11-27, /tmp script, on '
-            'its own on the machine).'
+            'constraints so that they do not stretch as they fall%s): this run gives %.2f and '
+            '%.2f s/s. The strands take about 2.3 substeps a frame over the 2 s fall (1 each '
+            'once they hang; 2.8 before the joint springs were mended for a changing step, '
+            'when the counts\' own switching kept strands lying on the head moving), 1.11 and '
+            '5.58 million segment-substeps at 200 and 1000 x 20, about 0.28 us each with '
+            'forces and contacts (0.46 before the chain step took eight strands at once; the '
+            'two codes alternated three times on the same machine, 2026-11-28: 0.25-0.27 -> '
+            '0.15-0.16 s/s at 200 x 20, 1.40-1.45 -> 0.80-0.96 at 1000 x 20). About half of '
+            'that is now the contacts, strand by strand.'
             % (flex_error_ratio(accuracy, at_frame)
                + (' and '.join(times),
                   cost[(200, 'mujoco')] / cost[(200, 'hair_sim articulated')],
