@@ -233,7 +233,9 @@ ChainState = namedtuple('ChainState', ['R', 'omega', 'alpha', 'rest_rel', 'k', '
                                        'inertia_axial',
                                        'offset', 'air', 'friction', 'sag_by_height',
                                        'shape_k', 'shape_dir'])
-# step_chains' scratch (chain_scratch): per-chain arrays reused for every strand and step
+# step_chains' scratch (chain_scratch), reused for every step: the lanes' fields (W, see
+# LANES), their strands and the guard's moves in them, and one strand's articulated pass
+# and contacts at a time (the strand-by-strand contact solves)
 ChainScratch = namedtuple('ChainScratch', ['W', 'lanes', 'slots', 'l_guarded', 'l_gnrm',
                                            'Dinv', 'U_A', 'U_B', 'alpha',
                                            'guarded', 'g_nrm', 'u_imp', 'dw', 'rc_imp',
