@@ -545,8 +545,8 @@ def bend_energy(S, e0):
 
 @njit_without_refcounts
 def bend_deviation_of(S, e0):
-    """Return bend_deviation_at the bend's angle theta = atan2(sin(theta), cos(theta))."""
-    return bend_deviation_at(S, e0, atan2(sqrt(S[2] * S[2] + S[5] * S[5]), S[8]))
+    """Return bend_deviation_at the bend's angle (_bend_angle of S's rod axis)."""
+    return bend_deviation_at(S, e0, _bend_angle(S[2], S[5], S[8])[0])
 
 
 @inlined_without_refcounts
