@@ -134,7 +134,10 @@ UNRESOLVED_DAMPING = 0.5     # share of a step's spring increment that damps unr
 # rad a segment may turn in one substep: at 0.1 the tips of 20-segment strands falling
 # over the head whipped up and diverged (hanging scene, 1/60 to 1/240 s); with 2-DOF
 # joints and retried steps, 0.1 still let bob_fringe diverge under violent motion (3 s:
-# once at 1/60 s, 3 times at 1/240 s) while halving the demo's cost (0.4-0.6 s per s)
+# once at 1/60 s, 3 times at 1/240 s) while halving the demo's cost (0.4-0.6 s per s);
+# and away from the head it keeps a free swing accurate: a damped ten-rod chain released
+# from horizontal ends 0.90 mm from its Lagrangian (scipy) at 1/60 s with 0.05, 1.01 mm
+# with 0.06 and 1.55 mm with 0.1 for the rods far from every sphere (design_notes.md)
 MAX_STEP_ROTATION = 0.05
 # at most this many substeps per step: at 64, violent head motion at one step per 60 Hz
 # frame (tips near 300 rad/s) ran out of substeps and bob_fringe diverged twice in 3 s
