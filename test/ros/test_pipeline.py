@@ -229,17 +229,26 @@ def test_a_stop_while_publishing_is_a_clean_exit(program):
     import signal
     if program == 'head_driver':
         cmd, warm = [sys.executable, '-m', 'hair_sim.ros.head_driver', '--rate', '2000'], 1.5
-        tries = 5
+        tries, ready = 5, None
     else:
         cmd = [os.path.join(os.path.dirname(sys.executable), 'hair_sim_node'), '--ros-args',
                '-p', 'publish_rate:=240.0', '-p', 'marker_rate:=240.0']
-        warm, tries = 6.0, 4
-    for _ in range(tries):
+        # the node's timers start with its 'hair_sim: <style>, ...' line: the stop lands
+        # that long after it (a fixed 6 s from the start before, which on a slow machine
+        # could land before the node published at all)
+        warm, tries, ready = 0.6, 4, 'hair_sim: '
+    for k in range(tries):
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                 text=True)
-        time.sleep(warm)
+        seen, start = [], time.monotonic()
+        while ready is not None and time.monotonic() - start < 60.0:
+            seen.append(proc.stdout.readline())
+            if ready in seen[-1] or not seen[-1]:
+                break
+        assert ready is None or ready in seen[-1], ''.join(seen)[-3000:]
+        time.sleep(warm + 0.3 * k)
         proc.send_signal(signal.SIGTERM)
-        out, _ = proc.communicate(timeout=30)
+        out = ''.join(seen) + proc.communicate(timeout=30)[0]
         assert proc.returncode == 0, out[-3000:]
         assert 'Traceback' not in out and 'unexpected' not in out, out[-3000:]
 
