@@ -229,14 +229,14 @@ def test_a_stop_while_publishing_is_a_clean_exit(program):
     import signal
     if program == 'head_driver':
         cmd, warm = [sys.executable, '-m', 'hair_sim.ros.head_driver', '--rate', '2000'], 1.5
-        tries, ready = 5, None
+        tries, ready, later = 5, None, 0.0
     else:
         cmd = [os.path.join(os.path.dirname(sys.executable), 'hair_sim_node'), '--ros-args',
                '-p', 'publish_rate:=240.0', '-p', 'marker_rate:=240.0']
         # the node's timers start with its 'hair_sim: <style>, ...' line: the stop lands
         # that long after it (a fixed 6 s from the start before, which on a slow machine
         # could land before the node published at all)
-        warm, tries, ready = 0.6, 4, 'hair_sim: '
+        warm, tries, ready, later = 0.6, 4, 'hair_sim: ', 0.3
     for k in range(tries):
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                 text=True)
@@ -246,7 +246,7 @@ def test_a_stop_while_publishing_is_a_clean_exit(program):
             if ready in seen[-1] or not seen[-1]:
                 break
         assert ready is None or ready in seen[-1], ''.join(seen)[-3000:]
-        time.sleep(warm + 0.3 * k)
+        time.sleep(warm + later * k)
         proc.send_signal(signal.SIGTERM)
         out = ''.join(seen) + proc.communicate(timeout=30)[0]
         assert proc.returncode == 0, out[-3000:]
