@@ -123,6 +123,24 @@ class Client:
         rclpy.try_shutdown(context=self.context)
 
 
+def read_until(proc, found, timeout, what):
+    """
+    Read a text-mode proc's stdout line by line until found(line); return the lines read.
+
+    The last line returned is the one found. Fails naming `what`, with the output, when the
+    timeout passes or the process ends first.
+    """
+    end = time.monotonic() + timeout
+    seen = []
+    while time.monotonic() < end:
+        seen.append(proc.stdout.readline())
+        if found(seen[-1]):
+            return seen
+        if not seen[-1] and proc.poll() is not None:
+            break
+    raise AssertionError('%s: not seen\n%s' % (what, ''.join(seen)[-3000:]))
+
+
 def wait_for(predicate, timeout):
     """Poll predicate() until true or timeout; return its last value."""
     end = time.monotonic() + timeout

@@ -17,7 +17,8 @@ import time
 import numpy as np
 import pytest
 
-from helpers.node_process import Client, diagnostics_values, NodeProcess, probe_rates, wait_for
+from helpers.node_process import (Client, diagnostics_values, NodeProcess, probe_rates,
+                                  read_until, wait_for)
 
 HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.path.dirname(sys.executable)
@@ -25,14 +26,8 @@ BIN = os.path.dirname(sys.executable)
 
 def read_url(proc, timeout):
     """Read the demo's stdout until its 'URL ...' line."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        line = proc.stdout.readline()
-        if line.startswith('URL '):
-            return line.split()[1]
-        if not line and proc.poll() is not None:
-            break
-    raise AssertionError('the demo printed no URL')
+    line = read_until(proc, lambda line: line.startswith('URL '), timeout, 'the demo\'s URL')[-1]
+    return line.split()[1]
 
 
 @pytest.mark.parametrize('model, sim_rate', [('anjyo', 240.0), ('articulated', 60.0)])
@@ -240,12 +235,8 @@ def test_a_stop_while_publishing_is_a_clean_exit(program):
     for k in range(tries):
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                 text=True)
-        seen, start = [], time.monotonic()
-        while ready is not None and time.monotonic() - start < 60.0:
-            seen.append(proc.stdout.readline())
-            if ready in seen[-1] or not seen[-1]:
-                break
-        assert ready is None or ready in seen[-1], ''.join(seen)[-3000:]
+        seen = [] if ready is None else \
+            read_until(proc, lambda line: ready in line, 60.0, 'the node\'s ready line')
         time.sleep(warm + later * k)
         proc.send_signal(signal.SIGTERM)
         out = ''.join(seen) + proc.communicate(timeout=30)[0]
@@ -272,12 +263,9 @@ def test_a_second_ctrl_c_while_stopping_is_a_clean_exit_that_leaves_no_server(pr
     for k in range(3):
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                 text=True)
-        seen, port, start = [], None, time.monotonic()
-        while port is None and time.monotonic() - start < 60.0:
-            seen.append(proc.stdout.readline())
-            m = re.search(r'http://127\.0\.0\.1:(\d+)/static', seen[-1])
-            port = int(m.group(1)) if m else None
-        assert port, ''.join(seen)[-2000:]
+        url = r'http://127\.0\.0\.1:(\d+)/static'
+        seen = read_until(proc, lambda line: re.search(url, line), 60.0, 'the meshcat URL')
+        port = int(re.search(url, seen[-1]).group(1))
         time.sleep(1.0 + 0.5 * k)
         proc.send_signal(signal.SIGINT)
         time.sleep(0.02 * k)
