@@ -163,6 +163,24 @@ def strand_sphere_masks(root, reach, spheres, masks):
 
 
 @njit_without_refcounts
+def keep_strands_clear_of_spheres(pos, spheres, clearance, which):
+    """Clear which[s] (in place) where a vertex of strand s is within clearance of a sphere."""
+    for s in range(pos.shape[0]):
+        if not which[s]:
+            continue
+        for v in range(pos.shape[1]):
+            for k in range(spheres.shape[0]):
+                dx = pos[s, v, 0] - spheres[k, 0]
+                dy = pos[s, v, 1] - spheres[k, 1]
+                dz = pos[s, v, 2] - spheres[k, 2]
+                lim = spheres[k, 3] + clearance
+                if dx * dx + dy * dy + dz * dz <= lim * lim:
+                    which[s] = False
+            if not which[s]:
+                break
+
+
+@njit_without_refcounts
 def place_with_head(head, attach, bodies, collisions, broad_phase):
     """
     Place the roots and spheres with the head, and run the broad phase; return its checks.

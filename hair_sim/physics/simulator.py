@@ -20,7 +20,7 @@ from hair_sim.physics.motion import filter_head_motion, HeadMotion, quat_to_matr
 from hair_sim.physics.multirate import multirate_substep
 from hair_sim.physics.params import PhysicsParams
 from hair_sim.physics.solvers.anjyo import AnjyoSolver
-from hair_sim.physics.solvers.articulated import ArticulatedSolver
+from hair_sim.physics.solvers.articulated import ArticulatedSolver, FREE_CLEARANCE
 from hair_sim.physics.wind import Wind
 from hair_sim.vecmath import vector_lengths
 
@@ -117,6 +117,7 @@ class HairSimulator:
                          'turn_clamps': 0, 'substeps': 0, 'strand_substeps': 0,
                          'retried_steps': 0, 'outran_kept': 0, 'shortened_steps': 0}
         self.last_step_time = 0.0
+        self._head_moved = True             # whether the head moved in the last step
         self.stability_dt = DEFAULT_DT      # the step set_params checks stability at
         self.state_version = 0              # bumped whenever positions may have changed
         self.layout_version = 0             # bumped whenever a kernel argument's type may change
@@ -157,6 +158,7 @@ class HairSimulator:
         self.wind = old.wind
         self.time = old.time
         self.counters = dict(old.counters)
+        self._head_moved = True
         self.stability_dt = old.stability_dt
         self.broad_phase = old.broad_phase
         self.max_step_work = old.max_step_work
@@ -437,9 +439,15 @@ class HairSimulator:
 
     # ----------------------------------------------------------------- stepping
     def _advance_head(self, t, h):
-        """Move the head to its pose at time t; return True if it moved."""
+        """
+        Move the head to its pose at time t; return True if it moved.
+
+        _head_moved says whether it moves during the step (a teleport puts it, and the
+        hair with it, where it is before the step: it does not).
+        """
         self._turn = np.zeros(3)                  # (unless the head turns in this step)
         self._pose_time = t
+        self._head_moved = False
         pose = self.motion.pose_at(t)
         if pose is None:
             return False
@@ -472,6 +480,7 @@ class HairSimulator:
         # the head is between the two poses, the base the chains' roots are jointed to)
         self._v, self._w, self._a, self._alpha, self._turn = kin
         self._R, self._p = R_new, p_new.copy()
+        self._head_moved = bool(moved)
         return moved
 
     def _head_still(self):
@@ -558,7 +567,7 @@ class HairSimulator:
             if not finite:
                 again = self._finer_counts(self._nonfinite_strands())
             else:
-                outran = self.solver.outran(h, counts)
+                outran = self.solver.outran(h, counts) | self._gained_energy(saved, h, counts)
                 if outran.any():
                     # what the swings at the step's end need. Strands joined by springs
                     # (sharing a count) take the most any needs: a style at rest (1
@@ -590,7 +599,8 @@ class HairSimulator:
                 finite = self._take_again(saved, t, h, again)
                 while True:
                     if finite:
-                        spoiled = self.solver.outran(h, self._last_substeps)
+                        spoiled = self.solver.outran(h, self._last_substeps) | \
+                            self._gained_energy(saved, h, self._last_substeps)
                         if not spoiled.any():
                             break
                     else:
@@ -668,6 +678,40 @@ class HairSimulator:
         self.counters['substeps'] += n
         self.counters['strand_substeps'] += int(counts.sum())
         return counts
+
+    def _gained_energy(self, saved, h, counts):
+        """
+        Return which strands ended the step just taken (h, at counts) with energy nothing gave.
+
+        Looked for only where nothing could give a strand energy (the head still, no wind,
+        no material blended in, no spring to another strand: _passive), among the strands
+        whose swing at the step's end asks for more substeps than they took (the model's
+        sped_up: a strand whose count covered its swing throughout took the step fine
+        enough) with no vertex within FREE_CLEARANCE of a sphere where the step began or
+        ended (contact is left out). Those whose motion, weight and springs together end
+        above where they began (the model's gained_energy, from the saved state) took the
+        step too coarsely, as a strand that outran its count. (n_strands,)
+        """
+        if not self._passive():
+            return np.zeros(self.pos.shape[0], dtype=bool)
+        which = self.solver.sped_up(h, counts)
+        if which.any() and self.params.collisions:
+            for pos in (saved[0][0], self.pos):         # where the step began, and ended
+                F.keep_strands_clear_of_spheres(pos, self.bodies.spheres, FREE_CLEARANCE,
+                                                which)
+        if not which.any():
+            return which
+        return self.solver.gained_energy(self, saved[0], which)
+
+    def _passive(self):
+        """
+        Return whether nothing could give the strands energy in the step just taken.
+
+        Not while the head moved or moves, the wind blows, a material change is blended
+        in, or inter-strip springs join strands (their wall springs are no potential's).
+        """
+        return not (self._head_moved or self.wind.active or self.solver.blending
+                    or self._joined() or not self._head_still())
 
     def _joined(self):
         """Return whether inter-strip springs join strands (they then share a count)."""

@@ -110,7 +110,7 @@ is positive definite with STABILITY_MARGIN (`stiffness_to_hold`).
 """
 
 from collections import namedtuple
-from math import atan2, cos, pi, sin, sqrt
+from math import acos, atan2, cos, pi, sin, sqrt
 
 from numba import njit, uint64
 import numpy as np
@@ -146,6 +146,14 @@ MAX_SUBSTEPS = 256
 # outrun its count (`outran`): the simulator takes the step again at the count the swing
 # at its end needs (strands joined by springs: all of them, at the most any needs)
 OUTRAN_FACTOR = 16
+# A strand nothing can give energy to (the head still, no wind, no spring to another
+# strand, no sphere within FREE_CLEARANCE) that ends a step with more energy than it began
+# it with, by more than this times its weight times its length, has outrun its count too
+# (`gained_energy`): a stiff follicle let go far from its rest rose up to 3.9 times
+# above its release in 40 of 144 random releases, in steps clipped at MAX_SUBSTEPS and in
+# steps whose whip grew 2.5 times within them, both under OUTRAN_FACTOR (design_notes.md)
+ENERGY_SLACK = 1e-9
+FREE_CLEARANCE = 0.01        # m
 # rad of spring deflection a joint may need to hold its style (sag-free offsets); beyond it
 # the joint is stiffened: measured, offsets past ~1 rad (up to 7.9 on the long styles,
 # past pi the log coordinates wrap) made the hair boil under calm head motion
@@ -537,13 +545,86 @@ def bend_energy(S, e0):
     10^4 rad/s in one substep. A style's preload stays below MAX_PRELOAD (1 rad), where
     sigma is 1: its rest shapes and their stability are unchanged.
     """
-    vx, vy, vz = S[0, 2], S[1, 2], S[2, 2]
+    return _bend_energy_of_axis(S[0, 2], S[1, 2], S[2, 2], e0)
+
+
+@njit_without_refcounts
+def _bend_energy_of_axis(vx, vy, vz, e0):
+    """bend_energy from the rod's axis v = S z in the joint's rest frame."""
     t, st, f = _bend_angle(vx, vy, vz)
     # sigma theta n.e0, with g = z x v = sin(theta) n: f g.e0 up to a right angle (sigma =
     # 1, f = theta / sin(theta)), theta g.e0 beyond (sigma = sin(theta))
     ge0 = -vy * e0[0] + vx * e0[1]
     pre = f * ge0 if t <= 0.5 * pi else t * ge0
     return 0.5 * (t * t - 2.0 * pre + e0[0] * e0[0] + e0[1] * e0[1] + e0[2] * e0[2])
+
+
+@njit_without_refcounts
+def strand_energies(chain,
+                    material,
+                    R_head,
+                    gravity,
+                    which,
+                    out):
+    """
+    Each strand's energy (J) into out (n_strands,): motion, weight and springs.
+
+    chain is (R, omega, pos, vel), the state to measure; material is (mass, length,
+    inertia_axial, rest_rel, k, offset, shape_dir, shape_k), as the solver holds them;
+    R_head the head's rotation. Only the strands where `which` is set are measured (the
+    others are left as they are). The terms are those of kinetic_energy and
+    potential_energy, strand by strand, with gravity's m g z at each rod's centre.
+    """
+    R, omega, pos, vel = chain
+    mass, length, inertia_axial, rest_rel, k, offset, shape_dir, shape_k = material
+    head = _load3(R_head)
+    for s in range(R.shape[0]):
+        if not which[s]:
+            continue
+        total = 0.0
+        # the parent's frame (the head's for the first rod), by columns
+        px = (head[0], head[3], head[6])
+        py = (head[1], head[4], head[7])
+        pz = (head[2], head[5], head[8])
+        for i in range(R.shape[1]):
+            m = mass[s, i]
+            vx = 0.5 * (vel[s, i, 0] + vel[s, i + 1, 0])
+            vy = 0.5 * (vel[s, i, 1] + vel[s, i + 1, 1])
+            vz = 0.5 * (vel[s, i, 2] + vel[s, i + 1, 2])
+            dx, dy, dz = R[s, i, 0, 2], R[s, i, 1, 2], R[s, i, 2, 2]
+            wx, wy, wz = omega[s, i, 0], omega[s, i, 1], omega[s, i, 2]
+            wd = wx * dx + wy * dy + wz * dz
+            w_perp2 = wx * wx + wy * wy + wz * wz - wd * wd
+            ip = m * length[s, i] * length[s, i] / 12.0
+            total += 0.5 * m * (vx * vx + vy * vy + vz * vz)
+            total += 0.5 * (ip * w_perp2 + inertia_axial[s, i] * wd * wd)
+            total += m * gravity * 0.5 * (pos[s, i, 2] + pos[s, i + 1, 2])
+            # the bend: S z = rest_rel^T Rp^T d, the rod's axis d in the joint's rest frame
+            # (joint_rotation_of's third column)
+            ax = px[0] * dx + px[1] * dy + px[2] * dz
+            ay = py[0] * dx + py[1] * dy + py[2] * dz
+            az = pz[0] * dx + pz[1] * dy + pz[2] * dz
+            rr = rest_rel[s, i]
+            total += k[s, i] * _bend_energy_of_axis(
+                rr[0, 0] * ax + rr[1, 0] * ay + rr[2, 0] * az,
+                rr[0, 1] * ax + rr[1, 1] * ay + rr[2, 1] * az,
+                rr[0, 2] * ax + rr[1, 2] * ay + rr[2, 2] * az,
+                offset[s, i])
+            if shape_k[s, i] > 0.0:
+                # the shape spring: its rod against its modeled direction, turned with the head
+                mx = head[0] * shape_dir[s, i, 0] + head[1] * shape_dir[s, i, 1] + \
+                    head[2] * shape_dir[s, i, 2]
+                my = head[3] * shape_dir[s, i, 0] + head[4] * shape_dir[s, i, 1] + \
+                    head[5] * shape_dir[s, i, 2]
+                mz = head[6] * shape_dir[s, i, 0] + head[7] * shape_dir[s, i, 1] + \
+                    head[8] * shape_dir[s, i, 2]
+                c = min(1.0, max(-1.0, mx * dx + my * dy + mz * dz))
+                a = acos(c)
+                total += 0.5 * shape_k[s, i] * a * a
+            px = (R[s, i, 0, 0], R[s, i, 1, 0], R[s, i, 2, 0])
+            py = (R[s, i, 0, 1], R[s, i, 1, 1], R[s, i, 2, 1])
+            pz = (dx, dy, dz)
+        out[s] = total
 
 
 @njit_without_refcounts
@@ -2195,6 +2276,7 @@ class ArticulatedSolver:
         self._strand_h = np.zeros(n_s)            # chain_step's per-substep steps
         self._strand_t = np.zeros(n_s)            # and the ends of the strands' own substeps
         self._step_call = CompiledCall(chain_step)
+        self._energies_call = CompiledCall(strand_energies)
         self.placed = False                       # (R holds no pose yet)
         self.update_material(sim)
 
@@ -2372,6 +2454,43 @@ class ArticulatedSolver:
         """
         strand_swings(self.R, self.omega, self._swings)
         return ~(h * self._swings <= OUTRAN_FACTOR * MAX_STEP_ROTATION * counts)
+
+    def sped_up(self, h, counts):
+        """
+        Return which strands end a step of h needing more substeps than counts (n_strands,).
+
+        Their swing at the step's end, unclipped (MAX_SUBSTEPS), over MAX_STEP_ROTATION a
+        substep; NaN counts as sped up.
+        """
+        strand_swings(self.R, self.omega, self._swings)
+        return ~(h * self._swings <= MAX_STEP_ROTATION * counts)
+
+    def gained_energy(self, sim, before, which):
+        """
+        Return which of the strands `which` ended a step with more energy than it began.
+
+        before is the state the step began from (the simulator's snapshot: pos, pos_prev,
+        vel, stats, then step_state); more means more than ENERGY_SLACK times the
+        strand's weight times its length. The caller picks strands nothing could give
+        energy to (the simulator's _passive_strands), so that a rise is the step's own.
+        """
+        pos0, _, vel0, _, R0, omega0 = before[:6]
+        material = (sim.mass, sim.length, self.inertia_axial, self.rest_rel, self.k,
+                    self.offset, self.shape_dir, self.shape_k)
+        R_head = np.ascontiguousarray(sim.head_pose[0])
+        start = np.zeros(len(which))
+        end = np.zeros(len(which))
+        for chain, out in (((R0, omega0, pos0, vel0), start),
+                           ((self.R, self.omega, sim.pos, sim.vel), end)):
+            self._energies_call(sim.layout_version,
+                                chain,
+                                material,
+                                R_head,
+                                sim.params.gravity,
+                                which,
+                                out)
+        slack = ENERGY_SLACK * sim.params.gravity * (sim.mass.sum(1) * sim.length.sum(1))
+        return which & (end > start + slack)
 
     def step(self, sim, strand_h, head, strand_t):
         """
