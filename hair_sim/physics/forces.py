@@ -164,11 +164,15 @@ def strand_sphere_masks(root, reach, spheres, masks):
 
 @njit_without_refcounts
 def keep_strands_clear_of_spheres(pos, spheres, clearance, which):
-    """Clear which[s] (in place) where a vertex of strand s is within clearance of a sphere."""
+    """
+    Clear which[s] (in place) where a vertex of strand s is within clearance of a sphere.
+
+    The root is not looked at: it sits on the scalp, held by the head, and takes no contact.
+    """
     for s in range(pos.shape[0]):
         if not which[s]:
             continue
-        for v in range(pos.shape[1]):
+        for v in range(1, pos.shape[1]):
             for k in range(spheres.shape[0]):
                 dx = pos[s, v, 0] - spheres[k, 0]
                 dy = pos[s, v, 1] - spheres[k, 1]
