@@ -2475,7 +2475,7 @@ class ArticulatedSolver:
         before is the state the step began from (the simulator's snapshot: pos, pos_prev,
         vel, stats, then step_state); more means more than ENERGY_SLACK times the
         strand's weight times its length. The caller picks strands nothing could give
-        energy to (the simulator's _passive_strands), so that a rise is the step's own.
+        energy to (the simulator's _gained_energy), so that a rise is the step's own.
         """
         pos0, _, vel0, _, R0, omega0 = before[:6]
         material = (sim.mass, sim.length, self.inertia_axial, self.rest_rel, self.k,
