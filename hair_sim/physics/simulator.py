@@ -694,14 +694,16 @@ class HairSimulator:
         """
         if not self._passive():
             return np.zeros(self.pos.shape[0], dtype=bool)
+        # the snapshot, as _step_state lists it
+        pos0, _, vel0, _ = saved[0][:4]
         which = self.solver.sped_up(h, counts)
         if which.any() and self.params.collisions:
-            for pos in (saved[0][0], self.pos):         # where the step began, and ended
+            for pos in (pos0, self.pos):               # where the step began, and ended
                 F.keep_strands_clear_of_spheres(pos, self.bodies.spheres, FREE_CLEARANCE,
                                                 which)
         if not which.any():
             return which
-        return self.solver.gained_energy(self, saved[0], which)
+        return self.solver.gained_energy(self, (pos0, vel0), saved[0][4:], which)
 
     def _passive(self):
         """

@@ -2455,8 +2455,7 @@ class ArticulatedSolver:
         OUTRAN_FACTOR times as many (each count is set from the swing where the step
         starts); a NaN strand has outrun them too.
         """
-        strand_swings(self.R, self.omega, self._swings)
-        return ~(h * self._swings <= OUTRAN_FACTOR * MAX_STEP_ROTATION * counts)
+        return self._swing_past(h, counts, OUTRAN_FACTOR)
 
     def sped_up(self, h, counts):
         """
@@ -2465,19 +2464,24 @@ class ArticulatedSolver:
         Their swing at the step's end, unclipped (MAX_SUBSTEPS), over MAX_STEP_ROTATION a
         substep; NaN counts as sped up.
         """
-        strand_swings(self.R, self.omega, self._swings)
-        return ~(h * self._swings <= MAX_STEP_ROTATION * counts)
+        return self._swing_past(h, counts, 1.0)
 
-    def gained_energy(self, sim, before, which):
+    def _swing_past(self, h, counts, factor):
+        """Return where the swing at a step's end needs over factor times counts substeps."""
+        strand_swings(self.R, self.omega, self._swings)
+        return ~(h * self._swings <= factor * MAX_STEP_ROTATION * counts)
+
+    def gained_energy(self, sim, strands_before, before, which):
         """
         Return which of the strands `which` ended a step with more energy than it began.
 
-        before is the state the step began from (the simulator's snapshot: pos, pos_prev,
-        vel, stats, then step_state); more means more than ENERGY_SLACK times the
+        strands_before is (pos, vel) where the step began, before the model's own state
+        there (as step_state lists it); more means more than ENERGY_SLACK times the
         strand's weight times its length. The caller picks strands nothing could give
         energy to (the simulator's _gained_energy), so that a rise is the step's own.
         """
-        pos0, _, vel0, _, R0, omega0 = before[:6]
+        pos0, vel0 = strands_before
+        R0, omega0 = before[:2]
         material = (sim.mass, sim.length, self.inertia_axial, self.rest_rel, self.k,
                     self.offset, self.shape_dir, self.shape_k)
         R_head = np.ascontiguousarray(sim.head_pose[0])
