@@ -920,6 +920,7 @@ class HairSimulator:
                 self.solver.contact_hinge(head),
                 strand_h,
                 self.solver.drops_inward_input,
+                self.solver.contact_force_at_q,
             )
             c['kernel_calls'] += 1
         if not self.solver.springs_before_contacts:

@@ -216,6 +216,47 @@ def test_every_contact_of_a_segment_is_recorded_for_the_implicit_solve():
                                [[0.0, 0.0, 1.0]] * 2, atol=1e-9)
 
 
+@pytest.mark.parametrize('lever', [0.3, 0.5, 0.8])
+def test_a_chord_contact_acts_on_the_chain_as_the_force_at_its_point(lever):
+    """
+    Eq. 10's response at Q, for a model whose segments pass forces on to their parents.
+
+    The thesis model moves it to the free end with weight t (the same moment about the
+    segment's start, all that its segments feel); the chain gets the force at Q itself:
+    the same total force and the same moment about the start, split between the
+    segment's centre and its end (the wrench of a point force on a rigid rod).
+    """
+    start = np.array([0.0, 0.0, 0.1])
+    end = start + [0.04, 0.0, 0.0]
+    q = start + lever * (end - start)
+    head = _crease_head([q], [0.0, 0.0, 1.0], 0.008)
+    pos = np.array([[start, end]])
+    strands = forces.Strands(pos=pos, pos_prev=pos.copy(), vel=np.full_like(pos, -0.2),
+                             length=np.array([[0.04]]), mass=np.ones((1, 1)))
+    bodies = forces.Bodies(spheres=head.scalp, sphere_vel=np.zeros((1, 3)),
+                           masks=np.array([1], dtype=np.int64))
+    out = {}
+    for at_q in (False, True):
+        f_dist, f_end = np.zeros((1, 1, 3)), np.zeros((1, 1, 3))
+        contact = np.zeros((1, 1, forces.CONTACT_SLOTS * forces.CONTACT_FIELDS))
+        n = forces.reaction_constraint_forces(strands, bodies, 2.0, 0.5, True,
+                                              forces.Forces(f_dist=f_dist, f_end=f_end,
+                                                            contact=contact),
+                                              None, None, False, at_q)
+        assert n == 1
+        tt = contact[0, 0, forces.CONTACT_LEVER]
+        out[at_q] = (f_dist[0, 0], f_end[0, 0], tt)
+    np.testing.assert_allclose(out[False][2], lever, atol=1e-9)
+    assert np.array_equal(out[False][0], np.zeros(3))
+    force_at_q = out[False][1] / lever                  # the thesis' t F at the end
+    assert force_at_q[2] > 0.0                          # (it pushes out: the rod falls in)
+    f_dist, f_end, _ = out[True]
+    np.testing.assert_allclose(f_dist + f_end, force_at_q, rtol=1e-12)
+    arm = end - start
+    np.testing.assert_allclose(np.cross(0.5 * arm, f_dist) + np.cross(arm, f_end),
+                               np.cross(lever * arm, force_at_q), rtol=1e-12, atol=1e-18)
+
+
 def test_without_a_record_the_forces_are_the_same_and_the_record_is_left_alone():
     """
     A model that does not read the contact record (the thesis model) skips writing it.

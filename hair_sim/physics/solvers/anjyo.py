@@ -746,6 +746,7 @@ class AnjyoSolver:
     springs_before_contacts = True  # eq. 7 bears what the springs of 5.2 press with too
     uses_contacts = False        # the contact record (implicit contacts) is not read
     drops_inward_input = True    # eq. 7: the surface bears the inward input force
+    contact_force_at_q = False   # eq. 10 moved to the end: a segment turns about its start
     blending = False             # (a material change takes effect at once: relax_material)
     forces_at_mid_step = False   # eqs. 4-6 take the forces where the step starts
     contact_damping_rate = 0.0   # eq. 8's c is collision_damping alone (explicit)

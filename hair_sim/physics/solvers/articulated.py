@@ -821,6 +821,54 @@ def _without_relative_spin(w, parent_w, d):
 
 
 @njit_without_refcounts
+def _rigid_articulated_inertias(s, R, length, mass, inertia_axial, articulated):
+    """
+    Write strand s's articulated inertias of its rods alone, as they are now (D^-1, U).
+
+    The backward pass of _joint without the step's implicit terms (the joints' springs
+    and dampers, the drag's and the contacts' added masses) and at the chain's present
+    configuration R: what an impulse meets at an instant. articulated is (Dinv, U_A, U_B)
+    (n_seg, 3, 3), overwritten.
+    """
+    Dinv, U_A, U_B = articulated
+    n_seg = length.shape[1]
+    CA = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    CB = CA
+    CM = CA
+    for i in range(n_seg - 1, -1, -1):
+        seg = length[s, i]
+        m = mass[s, i]
+        ia = inertia_axial[s, i]
+        dx, dy, dz = R[s, i, 0, 2], R[s, i, 1, 2], R[s, i, 2, 2]
+        ip = m * seg * seg / 3.0
+        j01, j02, j12 = (ia - ip) * dx * dy, (ia - ip) * dx * dz, (ia - ip) * dy * dz
+        Jm = _add3((ip + (ia - ip) * dx * dx, j01, j02,
+                    j01, ip + (ia - ip) * dy * dy, j12,
+                    j02, j12, ip + (ia - ip) * dz * dz), CA)
+        r0, r1, r2 = 0.5 * seg * dx, 0.5 * seg * dy, 0.5 * seg * dz
+        Bm = _add3((0.0, -r2 * m, r1 * m, r2 * m, 0.0, -r0 * m, -r1 * m, r0 * m, 0.0), CB)
+        Mm = _add3((m, 0.0, 0.0, 0.0, m, 0.0, 0.0, 0.0, m), CM)
+        Sm = _without_twist(_inverse_sym3(Jm), dx, dy, dz)
+        _store3(Sm, Dinv[i])
+        _store3(Jm, U_A[i])
+        _store3(Bm, U_B[i])
+        if i == 0:
+            break
+        Aa = _sub3(Jm, _mul3(Jm, _mul3(Sm, Jm)))
+        SB = _mul3(Sm, Bm)
+        Ba = _sub3(Bm, _mul3(Jm, SB))
+        Ma = _sub3(Mm, _mul3(_transpose3(Bm), SB))
+        lp = length[s, i - 1]
+        ax, ay, az = lp * R[s, i - 1, 0, 2], lp * R[s, i - 1, 1, 2], lp * R[s, i - 1, 2, 2]
+        Ka = (0.0, -az, ay, az, 0.0, -ax, -ay, ax, 0.0)
+        KM = _mul3(Ka, Ma)
+        CA = _sub3(_add3(_sub3(Aa, _mul3(Ba, Ka)), _mul3(Ka, _transpose3(Ba))),
+                   _mul3(KM, Ka))
+        CB = _add3(Ba, KM)
+        CM = Ma
+
+
+@njit_without_refcounts
 def _stop_inward_motion(s,
                         contacts,
                         chain,
@@ -837,13 +885,17 @@ def _stop_inward_motion(s,
     velocities grew without bound under violent head motion). Each guarded end gets the
     impulse along the guard's direction that stops its motion into the sphere relative to
     the head (the head's surface velocity v + w x (x - p)), through the articulated
-    inertias of this step, so every segment of the chain responds as the dynamics say
-    (Featherstone's test-force propagation). The ends of one chain are coupled: sweeps
+    inertias of the rods alone where the chain now is (_rigid_articulated_inertias), so
+    every segment of the chain responds as an impact says (Featherstone's test-force
+    propagation): a plastic impact, which takes motion and never gives any. (Through the
+    step's articulated inertias, with its joints' implicit springs and the contacts'
+    added masses in them, the impulse was spread as over a step, not an instant, and
+    could give a chain motion.) The ends of one chain are coupled: sweeps
     root to tip mend each end's accumulated impulse (never pulling) until none changes a
     velocity by more than IMPULSE_TOLERANCE (projected Gauss-Seidel); then the vertex
     velocities are placed again. contacts is (guarded, normal) per segment, chain (R,
-    omega, length), base the roots' (positions, velocities), scratch (u, dw, rc, the
-    accumulated impulses).
+    omega, length), base the roots' (positions, velocities), articulated the rods'
+    (Dinv, U_A, U_B), scratch (u, dw, rc, the accumulated impulses).
     """
     guarded, g_nrm = contacts
     R, omega, length = chain
@@ -1812,6 +1864,16 @@ def _step_lanes(state,
         _joint(W, i, i < n_seg - 1)
     for i in range(n_seg):
         _accelerations(W, i)
+    # the next step predicts its mid-step velocities from these (_drift_turn): the
+    # accelerations of the forces, without the contact impulses below. With them, the
+    # step after a strand hit the head extrapolated the impact's 1e5 rad/s^2 into its
+    # velocity-product terms and gave the strand energy (hanging scene at 1/960 s: 0.0087
+    # m g L in one step, a sixth of its motion; -0.0011 without)
+    for ln in range(n_valid):
+        s = lanes[ln]
+        for i in range(n_seg):
+            for a in range(3):
+                alpha_prev[s, i, a] = W[_ix(_rec(i) + G_AL + a, ln)]
     # ---------------- contacts before the drift, strand by strand
     if collide:
         contact = forces.contact
@@ -1875,7 +1937,6 @@ def _step_lanes(state,
                 for b in range(3):
                     R[s, i, a, b] = W[_ix(g + G_RF + 3 * a + b, ln)]
                 omega[s, i, a] = W[_ix(g + G_WF + a, ln)]
-                alpha_prev[s, i, a] = W[_ix(g + G_AL + a, ln)]
                 pos_prev[s, i + 1, a] = pos[s, i + 1, a]
                 pos[s, i + 1, a] = W[_ix(g + G_E + a, ln)]
                 vel[s, i + 1, a] = W[_ix(g + G_V + a, ln)]
@@ -1889,7 +1950,8 @@ def _step_lanes(state,
                     sc.g_nrm[i, a] = sc.l_gnrm[ln, i, a]
             if n_guarded == 0:
                 continue
-            _lane_to_chain(W, ln, n_seg, sc)
+            _rigid_articulated_inertias(lanes[ln], R, length, strands.mass,
+                                        state.inertia_axial, (sc.Dinv, sc.U_A, sc.U_B))
             _stop_inward_motion(lanes[ln],
                                 (sc.guarded, sc.g_nrm),
                                 (R, omega, length),
@@ -2032,7 +2094,8 @@ def chain_step(state,
                                                    forces,
                                                    None,
                                                    strand_h,
-                                                   DROPS_INWARD_INPUT)
+                                                   DROPS_INWARD_INPUT,
+                                                   True)
         if settings.inter_strip and springs[0].pairs.shape[0] > 0:
             walls += strip_springs(at_mid, bodies.spheres[:settings.n_scalp], springs[0],
                                    springs[1], forces)
@@ -2262,6 +2325,7 @@ class ArticulatedSolver:
     whole_step = True            # all of a step's substeps in one call (chain_step)
     springs_before_contacts = False  # contacts first (the chain takes them implicitly)
     drops_inward_input = DROPS_INWARD_INPUT  # the contact impulses bear what presses
+    contact_force_at_q = True    # eq. 10 acts at Q: the chain passes it on to the parents
 
     def __init__(self, sim):
         n_s, n_seg = sim.length.shape
