@@ -475,7 +475,7 @@ def reaction_constraint_forces(strands,
     t) of the response, pulled the segment's start into the sphere, unopposed by the
     contact's implicit damping (which holds Q), so the rod pivoted about Q and its ends
     were flung (hanging scene, 50 x 10 strands at 1/60 s with collision_damping 0.3: a
-    strand gained 0.39 m g L of energy in one step; 0.02 at the default 0.06).
+    strand gained 0.39 m g L of energy in one step; 0.002 at most with the force at Q).
 
     With record_contacts each contact is also written to forces.contact (cleared first),
     for a model that takes contacts implicitly; a model that does not read the record
