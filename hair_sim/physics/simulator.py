@@ -567,7 +567,7 @@ class HairSimulator:
             if not finite:
                 again = self._finer_counts(self._nonfinite_strands())
             else:
-                outran = self.solver.outran(h, counts) | self._gained_energy(saved, h, counts)
+                outran = self._outran(saved, h, counts)
                 if outran.any():
                     # what the swings at the step's end need. Strands joined by springs
                     # (sharing a count) take the most any needs: a style at rest (1
@@ -599,8 +599,7 @@ class HairSimulator:
                 finite = self._take_again(saved, t, h, again)
                 while True:
                     if finite:
-                        spoiled = self.solver.outran(h, self._last_substeps) | \
-                            self._gained_energy(saved, h, self._last_substeps)
+                        spoiled = self._outran(saved, h, self._last_substeps)
                         if not spoiled.any():
                             break
                     else:
@@ -678,6 +677,15 @@ class HairSimulator:
         self.counters['substeps'] += n
         self.counters['strand_substeps'] += int(counts.sum())
         return counts
+
+    def _outran(self, saved, h, counts):
+        """
+        Return which strands outran the step just taken (h, at counts) (n_strands,).
+
+        By their swing at its end (the model's outran), or by energy nothing gave them
+        (_gained_energy); saved is the state where it began.
+        """
+        return self.solver.outran(h, counts) | self._gained_energy(saved, h, counts)
 
     def _gained_energy(self, saved, h, counts):
         """

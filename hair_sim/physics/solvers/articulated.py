@@ -238,6 +238,10 @@ DROPS_INWARD_INPUT = False
 # fall over a ball (test_contact_friction) had the guard turn 11-12 segments out a step
 # for their second second, and with contact_friction 0.5 never slept within 10 s.
 SAG_BY_HEIGHT = True
+# Eq. 10's chord contact acts on the chain at its point Q (forces.reaction_constraint_forces'
+# force_at_q): the chain passes a force on to the parents, which the thesis model's segments
+# do not
+CONTACT_FORCE_AT_Q = True
 
 # air: the rate (1/s) of the drag -air m v on every segment's centre that the shared forces
 # apply explicitly at the start of the step; the chain adds its implicit half (see below)
@@ -2095,7 +2099,7 @@ def chain_step(state,
                                                    None,
                                                    strand_h,
                                                    DROPS_INWARD_INPUT,
-                                                   True)
+                                                   CONTACT_FORCE_AT_Q)
         if settings.inter_strip and springs[0].pairs.shape[0] > 0:
             walls += strip_springs(at_mid, bodies.spheres[:settings.n_scalp], springs[0],
                                    springs[1], forces)
@@ -2325,7 +2329,7 @@ class ArticulatedSolver:
     whole_step = True            # all of a step's substeps in one call (chain_step)
     springs_before_contacts = False  # contacts first (the chain takes them implicitly)
     drops_inward_input = DROPS_INWARD_INPUT  # the contact impulses bear what presses
-    contact_force_at_q = True    # eq. 10 acts at Q: the chain passes it on to the parents
+    contact_force_at_q = CONTACT_FORCE_AT_Q  # eq. 10 acts at Q, on to the parents
 
     def __init__(self, sim):
         n_s, n_seg = sim.length.shape
