@@ -201,3 +201,37 @@ def test_after_the_warmup_the_demo_compiles_no_kernel(fresh_compiles):
     saved, loaded = _cache_log(demo.stdout + demo.stderr)
     assert loaded, 'the demo loaded no kernel from the cache'
     assert not saved, 'the demo compiled kernels the warm-up did not:\n' + '\n'.join(saved)
+
+
+# A library user's scene: strands on their own (no inter-strip springs) under a still head
+# and no wind, where the simulator checks a retried step's energy (the hanging scene).
+HANGING = r'''
+from hair_sim.bench.hanging import head_model, rest_strands, scene_params
+from hair_sim.physics.simulator import HairSimulator
+sim = HairSimulator.from_strands(rest_strands(20, 10), head_model(),
+                                 **scene_params('articulated'))
+sim.set_head_pose(0.0, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0])
+for _ in range(30):
+    sim.step(1.0 / 60.0)
+print(sim.counters['strand_substeps'])
+'''
+
+
+def test_after_the_warmup_a_still_head_with_strands_apart_compiles_no_kernel(fresh_compiles):
+    """
+    The kernels a step calls only when nothing could give the strands energy are cached too.
+
+    With the head still, no wind and strands not joined by springs, a strand whose swing
+    outran its substeps has its energy checked (strand_energies) away from the spheres
+    (keep_strands_clear_of_spheres). The demo's styles join their strands, so driving the
+    node never calls them: a from_strands scene's first step compiled them for 0.85 s.
+    """
+    code, out, err, cache = fresh_compiles['warmup']
+    assert code == 0, out[-2000:] + err[-2000:]
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), NUMBA_DEBUG_CACHE='1')
+    run = subprocess.run([sys.executable, '-c', HANGING], env=env, capture_output=True,
+                         text=True, timeout=300)
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
+    saved, loaded = _cache_log(run.stdout + run.stderr)
+    assert loaded, 'the scene loaded no kernel from the cache'
+    assert not saved, 'the scene compiled kernels the warm-up did not:\n' + '\n'.join(saved)
