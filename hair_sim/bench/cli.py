@@ -18,6 +18,9 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
                                 both models against MuJoCo (make bench-deps)
     hair_sim_bench style    [--json] [--quick]                 every shipped style in the
                                 demo's gusts: how far from its look, and back after?
+    hair_sim_bench fall     [--json] [--quick] [--plots DIR]   the strands the stress
+                                gale leaves moving (articulated), run on in MuJoCo from the
+                                same state (make bench-deps)
 """
 
 import argparse
@@ -29,7 +32,7 @@ from hair_sim.bench.common import clean, emit
 from hair_sim.physics.params import PhysicsParams
 
 
-PLOTTING = ('accuracy', 'scale', 'stress', 'hanging')     # the commands that write --plots
+PLOTTING = ('accuracy', 'scale', 'stress', 'hanging', 'fall')     # the commands that write --plots
 
 
 def plots_folder_problem(path):
@@ -55,7 +58,8 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog='hair_sim_bench', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress', 'settle',
-                                            'node', 'budget', 'hanging', 'style'])
+                                            'node', 'budget', 'hanging', 'style',
+                                            'fall'])
     parser.add_argument('--json', action='store_true', help='print JSON on stdout')
     parser.add_argument('--quick', action='store_true', help='a short run (under a minute)')
     parser.add_argument('--plots', default='bench_out', help='directory for PNG plots')
@@ -111,6 +115,14 @@ def main(argv=None):
     elif args.command == 'style':
         from hair_sim.bench import style_keeping
         emit(style_keeping.run(args.quick), args.json, 'style')
+    elif args.command == 'fall':
+        import importlib.util
+        if importlib.util.find_spec('mujoco') is None:
+            print('hair_sim_bench fall: MuJoCo is not installed (make bench-deps)',
+                  file=sys.stderr)
+            return 1
+        from hair_sim.bench import fall
+        emit(fall.run(args.quick, args.plots), args.json, 'fall')
     elif args.command == 'skip':
         from hair_sim.bench import skip
         emit(skip.run(args.quick), args.json, 'skip')

@@ -26,6 +26,7 @@ from hair_sim.physics import SimulationDiverged
 from hair_sim.physics.simulator import HairSimulator, stability_problem
 
 DTS_FULL = [1 / 1000, 1 / 240, 1 / 60, 1 / 30]
+GALE = ([30.0, 0.0, 0.0], 1.0)     # the gale case's wind (m/s) and turbulence
 DTS_QUICK = [1 / 240, 1 / 60]
 
 
@@ -80,7 +81,7 @@ def run_case(name, integrator, dt, quick, style, model='anjyo', shape_stiffness=
     elif name == 'nod_20g':
         motion = nod
     elif name == 'gale_30mps':
-        wind = ([30.0, 0.0, 0.0], 1.0)
+        wind = GALE
     elif name == 'poles':
         poles = True
     elif name.startswith('stiffness_') or name.startswith('damping_'):

@@ -181,7 +181,7 @@ def test_settle_samples_the_motion_at_a_phase_per_seed(monkeypatch):
     assert not np.allclose(p, scenarios.violent(t)[0])
 
 
-@pytest.mark.parametrize('command', ['accuracy', 'scale', 'stress', 'hanging'])
+@pytest.mark.parametrize('command', ['accuracy', 'scale', 'stress', 'hanging', 'fall'])
 def test_a_plots_folder_that_cannot_be_written_is_refused_before_measuring(tmp_path, command):
     """
     --plots naming a file, or a folder that cannot be made, is refused at once (exit 2).
