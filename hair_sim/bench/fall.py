@@ -13,9 +13,10 @@ thesis_long style, violent head motion, the gale with full turbulence, seed 1, 2
 wind is stopped and the head held still. The springs between strands (thesis 5.2) are
 switched off at the stop, so that every strand moves on its own; hair_sim then runs on
 (both with them, as the stress case does, and without). The strands whose tips still move
-faster than the sleep tolerance (sleep_tolerance over sleep_delay) 4 s after the stop are
-the late ones. From hair_sim's state START_S after the stop (the head's own motion has
-died out), MuJoCo runs those strands:
+faster than the sleep tolerance (sleep_tolerance over sleep_delay) in the window's last
+second (3-4 s after the stop) are the late ones (at most MAX_STRANDS, the fastest). From
+hair_sim's state START_S after the stop (the head's own motion has died out), MuJoCo runs
+those strands:
 
 - one body per segment with its mass at its centre and a rod's inertia, ball joints at
   the vertices with the joints' dampers (MuJoCo's implicitfast integrator), the first
@@ -232,10 +233,15 @@ def world_spheres(sim):
 
 
 def last_fast(tips, speed):
-    """Return (s from the first sample: the last time any tip moved faster, speeds)."""
+    """
+    Return (when the last interval in which a tip moved faster than speed ends, speeds).
+
+    tips[j] is taken (j + 1) SAMPLE_S after the run began; the time is from then, and
+    speeds[j] is the fastest tip between tips[j] and tips[j + 1].
+    """
     v = np.linalg.norm(np.diff(tips, axis=0), axis=2).max(axis=1) / SAMPLE_S
     fast = np.nonzero(v > speed)[0]
-    return (float((fast[-1] + 1) * SAMPLE_S) if len(fast) else 0.0), v
+    return (float((fast[-1] + 2) * SAMPLE_S) if len(fast) else 0.0), v
 
 
 def _gale(dt):
@@ -252,7 +258,7 @@ def _gale(dt):
     return sim, violent(t), t
 
 
-def _hold(sim, hold, t, dt, duration, strands=None):
+def _hold(sim, hold, t, dt, duration):
     """Step sim with the head still for duration; return (tips every SAMPLE_S, slept at)."""
     every = int(round(SAMPLE_S / dt))
     tips, slept = [], None
@@ -262,7 +268,7 @@ def _hold(sim, hold, t, dt, duration, strands=None):
         if slept is None and sim.sleeping:
             slept = (i + 1) * dt
         if (i + 1) % every == 0:
-            tips.append(sim.pos[:, -1].copy() if strands is None else sim.pos[strands, -1])
+            tips.append(sim.pos[:, -1].copy())
     return np.array(tips), slept
 
 
@@ -278,8 +284,9 @@ def run_dt(dt, quick):
     _hold(sim, hold, t, dt, START_S)
     at_start = copy.deepcopy(sim)
     tips, slept_apart = _hold(sim, hold, t + start * dt, dt, after - START_S)
-    # the late strands: a tip faster than the tolerance in the second before the window ends
-    k = int(round((WINDOW_S - START_S) / SAMPLE_S))
+    # the late strands: a tip faster than the tolerance in the second before the window
+    # ends (tips[k] is at its end)
+    k = int(round((WINDOW_S - START_S) / SAMPLE_S)) - 1
     v = np.linalg.norm(np.diff(tips[k - int(1 / SAMPLE_S):k + 1], axis=0), axis=2) / SAMPLE_S
     late = np.nonzero(v.max(axis=0) > tol)[0]
     late = late[np.argsort(-v.max(axis=0)[late])][:MAX_STRANDS]
@@ -296,7 +303,7 @@ def run_dt(dt, quick):
     for name, x in (('hair_sim', hs), ('mujoco', mj)):
         fast, _ = last_fast(x, tol)
         record['%s_last_fast_s_after_stop' % name] = START_S + fast
-        record['%s_still_moving_at_end' % name] = fast >= after - START_S - 1.5 * SAMPLE_S
+        record['%s_still_moving_at_end' % name] = fast >= after - START_S - 0.5 * SAMPLE_S
         record['%s_speed_at_window_end_m_s' % name] = float(np.linalg.norm(
             x[k] - x[k - 1], axis=1).max() / SAMPLE_S)
     for when in (1.0, 2.0, WINDOW_S - START_S, after - START_S):
