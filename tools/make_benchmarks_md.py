@@ -623,10 +623,8 @@ def fall_section(rows):
             last(r, 'hair_sim'), last(r, 'mujoco')]) + ' |')
     out += ['', 'Tip distance between the two solvers (mm, per late strand): ' + '; '.join(
         '1/%d s: %s' % (round(1 / r['dt']), ', '.join(
-            '%s s after the stop %s' % (k.split('_at_')[1].rstrip('s'),
-                                        '/'.join('%.0f' % x for x in r[k]))
-            for k in sorted((k for k in r if k.startswith('tip_gap_mm_at_')),
-                            key=lambda k: float(k.split('_at_')[1].rstrip('s')))))
+            '%g s after the stop %s' % (g['s_after_stop'], '/'.join('%.0f' % x for x in g['mm']))
+            for g in r['tip_gap_mm']))
         for r in rows) + '.', '',
         'At the end of the window the fastest late tip moves %s times the tolerance in '
         'hair_sim and %s times in MuJoCo: another solver, given the same chain and state, '
@@ -636,8 +634,8 @@ def fall_section(rows):
         'vertices) decide when they go and which way.'
         % (span([r['hair_sim_speed_at_window_end_m_s'] / r['sleep_speed_m_s'] for r in rows]),
            span([r['mujoco_speed_at_window_end_m_s'] / r['sleep_speed_m_s'] for r in rows]),
-           span([g for r in rows
-                 for g in r['tip_gap_mm_at_%gs' % (r['mujoco_from_s_after_stop'] + 1.0)]])),
+           span([x for r in rows for g in r['tip_gap_mm'] for x in g['mm']
+                 if g['s_after_stop'] == r['mujoco_from_s_after_stop'] + 1.0])),
         '', '![](doc/bench/fall.png)', '']
     return out
 

@@ -224,14 +224,6 @@ def strand_state(sim, strands):
             'gravity': sim.params.gravity, 'R_head': R_head}
 
 
-def world_spheres(sim):
-    """Return the head's spheres (m, 4) in the world, at the head's pose."""
-    R, p = sim.head_pose
-    spheres = np.array(sim.spheres_head, dtype=float)
-    spheres[:, :3] = spheres[:, :3] @ np.asarray(R).T + p
-    return spheres
-
-
 def last_fast(tips, speed):
     """
     Return (when the last interval in which a tip moved faster than speed ends, speeds).
@@ -299,17 +291,21 @@ def run_dt(dt, quick):
     if not len(late):
         return record, None
     hs = tips[:, late]
-    mj = run_mujoco(strand_state(at_start, late), world_spheres(at_start), after - START_S)
+    # the spheres where hair_sim's last substep placed them (the head is still)
+    mj = run_mujoco(strand_state(at_start, late), np.array(at_start.bodies.spheres),
+                    after - START_S)
     for name, x in (('hair_sim', hs), ('mujoco', mj)):
         fast, _ = last_fast(x, tol)
         record['%s_last_fast_s_after_stop' % name] = START_S + fast
         record['%s_still_moving_at_end' % name] = fast >= after - START_S - 0.5 * SAMPLE_S
         record['%s_speed_at_window_end_m_s' % name] = float(np.linalg.norm(
             x[k] - x[k - 1], axis=1).max() / SAMPLE_S)
+    record['tip_gap_mm'] = []          # per late strand, at times after the stop
     for when in (1.0, 2.0, WINDOW_S - START_S, after - START_S):
         i = int(round(when / SAMPLE_S)) - 1
-        record['tip_gap_mm_at_%gs' % (START_S + when)] = \
-            (1e3 * np.linalg.norm(hs[i] - mj[i], axis=1)).round(1).tolist()
+        record['tip_gap_mm'].append({
+            's_after_stop': START_S + when,
+            'mm': (1e3 * np.linalg.norm(hs[i] - mj[i], axis=1)).round(1).tolist()})
     return record, (hs, mj)
 
 
