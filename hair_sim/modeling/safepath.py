@@ -64,3 +64,24 @@ def resolve_style_path(request, dirs, must_exist):
         raise HairstyleError('path %r: its directory is not inside the hairstyle directories'
                              % request)
     return real
+
+
+def resolve_save_path(request, dirs, overwrite):
+    """
+    Return the real path a save of `request` writes (resolve_style_path), or raise.
+
+    An existing file is refused unless `overwrite`, and a shipped hairstyle always: the
+    package's styles are its data (tools/make_styles.py makes them), and a save over one
+    replaced the default style of every later start (a careless client's save to
+    'thesis_long' put another style in its place).
+    """
+    path = resolve_style_path(request, dirs, must_exist=False)
+    if not os.path.lexists(path):
+        return path
+    shipped = os.path.realpath(paths.hairstyles_dir())
+    if os.path.commonpath([path, shipped]) == shipped:
+        raise HairstyleError('%r is a shipped hairstyle and is not replaced; save under '
+                             'another name' % request)
+    if not overwrite:
+        raise HairstyleError('%r exists (set overwrite to replace it)' % request)
+    return path

@@ -48,7 +48,7 @@ from visualization_msgs.msg import MarkerArray
 from hair_sim.modeling import fields
 from hair_sim.modeling.errors import HairstyleError
 from hair_sim.modeling.hairstyle import budget_problem, load_hairstyle, save_hairstyle
-from hair_sim.modeling.safepath import allowed_dirs, resolve_style_path
+from hair_sim.modeling.safepath import allowed_dirs, resolve_save_path, resolve_style_path
 from hair_sim.modeling.strips import build_strips
 from hair_sim.physics.params import PhysicsParams
 from hair_sim.physics.simulator import HairSimulator, SimulationDiverged, stability_problem
@@ -512,10 +512,10 @@ class HairSimNode(Node):
 
     async def _on_save(self, request, response):
         dirs = list(self._p('hairstyle_dirs'))
-        target = request.path
+        target, overwrite = request.path, request.overwrite
 
         def save(job):
-            path = resolve_style_path(target, dirs, must_exist=False)
+            path = resolve_save_path(target, dirs, overwrite)
             style = self._latest_style()
             save_hairstyle(style, path)
             return None, None, 'saved %s to %s' % (style.name, path)

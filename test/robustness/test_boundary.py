@@ -52,10 +52,11 @@ class Live:
         req.position.x, req.position.y, req.position.z = (float(v) for v in xyz)
         return self.client.call(EditControlPoint, NODE + '/edit_control_point', req, timeout)
 
-    def save(self, path, timeout=30.0):
+    def save(self, path, timeout=30.0, overwrite=True):
         from hair_sim_msgs.srv import SaveHairstyle
         return self.client.call(SaveHairstyle, NODE + '/save_hairstyle',
-                                SaveHairstyle.Request(path=path), timeout)
+                                SaveHairstyle.Request(path=path, overwrite=overwrite),
+                                timeout)
 
     def reset(self):
         from std_srvs.srv import Trigger

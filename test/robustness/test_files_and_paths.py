@@ -70,6 +70,49 @@ def test_paths_stay_inside_the_hairstyle_directories(node_env, tmp_path):
     assert r.success and (tmp_path / 'inside.yaml').is_file()
 
 
+def test_a_save_replaces_a_file_only_when_asked_and_never_a_shipped_style(node_env, tmp_path):
+    """
+    A save refuses an existing file unless told to overwrite it, and any shipped style.
+
+    The refused file is left byte for byte; with overwrite it holds the style now running.
+    A shipped style is refused either way: a save to 'thesis_long' once put another style
+    in the package's default. Each refusal is counted.
+    """
+    from hair_sim_msgs.srv import LoadHairstyle, SaveHairstyle
+    _, ex, node, client = node_env
+
+    def save(path, overwrite):
+        return call(ex, client, SaveHairstyle, '/hair_sim/save_hairstyle',
+                    SaveHairstyle.Request(path=path, overwrite=overwrite))
+
+    shipped = {n: open(paths.shipped_style(n), 'rb').read()
+               for n in paths.shipped_style_names()}
+    first = node.sim.style.name
+    r = save('mine', False)
+    assert r.success, r.message
+    before = (tmp_path / 'mine.yaml').read_bytes()
+    other = next(n for n in shipped if n != first)
+    r = call(ex, client, LoadHairstyle, '/hair_sim/load_hairstyle',
+             LoadHairstyle.Request(path=other))
+    assert r.success, r.message
+    refused = node.refused['save_hairstyle']
+    r = save('mine.yaml', False)
+    assert not r.success and 'exists' in r.message and 'overwrite' in r.message
+    assert (tmp_path / 'mine.yaml').read_bytes() == before
+    assert load_hairstyle(str(tmp_path / 'mine.yaml')).name == first
+    for name in shipped:
+        for overwrite in (False, True):
+            for path in (name, name + '.yaml', paths.shipped_style(name)):
+                r = save(path, overwrite)
+                assert not r.success and 'shipped' in r.message, (path, r.message)
+    assert node.refused['save_hairstyle'] == refused + 1 + 6 * len(shipped)
+    assert {n: open(paths.shipped_style(n), 'rb').read() for n in shipped} == shipped
+    r = save('mine', True)
+    assert r.success, r.message
+    assert load_hairstyle(str(tmp_path / 'mine.yaml')).name == other
+    assert sorted(os.listdir(tmp_path)) == ['mine.yaml']
+
+
 def test_a_save_killed_mid_write_leaves_the_previous_file(tmp_path):
     """A process killed while saving (before its rename) leaves the old file whole."""
     target = tmp_path / 'style.yaml'
