@@ -4,7 +4,6 @@ Regenerate the pictures in doc/ from the shipped styles.
 Run from the repository root: .venv/bin/python tools/make_docs.py
 """
 
-import glob
 import os
 import sys
 
@@ -21,8 +20,8 @@ def main():
     """Write doc/style_<name>.png for every shipped style and doc/ushape_views.png."""
     doc = os.path.join(ROOT, 'doc')
     os.makedirs(doc, exist_ok=True)
-    for path in sorted(glob.glob(os.path.join(paths.hairstyles_dir(), '*.yaml'))):
-        name = os.path.basename(path)[:-5]
+    for name in paths.shipped_style_names():
+        path = paths.shipped_style(name)
         print(render_png(load_hairstyle(path), os.path.join(doc, 'style_%s.png' % name)))
     sim = HairSimulator(load_hairstyle(paths.shipped_style('thesis_long')))
     sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])

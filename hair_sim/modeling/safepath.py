@@ -73,13 +73,13 @@ def resolve_save_path(request, dirs, overwrite):
     An existing file is refused unless `overwrite`, and a shipped hairstyle always: the
     package's styles are its data (tools/make_styles.py makes them), and a save over one
     replaced the default style of every later start (a careless client's save to
-    'thesis_long' put another style in its place).
+    'thesis_long' put another style in its place). A style a user saved beside them (the
+    shipped directory is the only one by default) is the user's, and may be replaced.
     """
     path = resolve_style_path(request, dirs, must_exist=False)
     if not os.path.lexists(path):
         return path
-    shipped = os.path.realpath(paths.hairstyles_dir())
-    if os.path.commonpath([path, shipped]) == shipped:
+    if path in {os.path.realpath(paths.shipped_style(n)) for n in paths.SHIPPED_STYLES}:
         raise HairstyleError('%r is a shipped hairstyle and is not replaced; save under '
                              'another name' % request)
     if not overwrite:

@@ -98,14 +98,13 @@ def test_shape_stiffness_is_refused_where_it_means_nothing_or_is_out_of_range(ar
 
 def test_skip_quick(tmp_path):
     """One record per feature and style (culling: every shipped style), work and skip costs."""
-    import os
     from hair_sim import paths
     rc, records = bench('skip', tmp_path)
     assert rc == 0
     features = {r['feature'] for r in records}
     assert len(features) == 5
     culling = [r for r in records if r['feature'].startswith('culling')]
-    shipped = {f[:-5] for f in os.listdir(paths.hairstyles_dir()) if f.endswith('.yaml')}
+    shipped = set(paths.shipped_style_names())
     assert {r['style'].split(' ')[0] for r in culling} == shipped | {'thesis_long_200'}
     assert all(0 < r['strips_drawn'] < int(r['style'].split('(')[1].split(' ')[0])
                for r in culling)                             # from the front, some are hidden

@@ -1,7 +1,6 @@
 """Bring your own head: `hair_sim_head fit` on the shipped mesh, and styles moved onto it."""
 
 import contextlib
-import glob
 import io
 import json
 import os
@@ -17,7 +16,7 @@ from hair_sim.modeling.head_tool import main as head_tool
 from hair_sim.modeling.reroot import move_points
 from helpers.styles import footprint_coverage
 
-STYLES = sorted(glob.glob(os.path.join(paths.hairstyles_dir(), '*.yaml')))
+STYLES = [paths.shipped_style(n) for n in paths.shipped_style_names()]
 
 
 @pytest.fixture(scope='module')

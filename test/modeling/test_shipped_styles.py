@@ -1,6 +1,5 @@
 """The shipped hairstyles load, have the promised counts and sit on the default head."""
 
-import glob
 import os
 
 import numpy as np
@@ -10,13 +9,47 @@ from hair_sim import paths
 from hair_sim.modeling import build_strips, load_hairstyle
 from helpers.styles import footprint_coverage
 
-STYLES = sorted(glob.glob(os.path.join(paths.hairstyles_dir(), '*.yaml')))
+STYLES = [paths.shipped_style(n) for n in paths.shipped_style_names()]
 
 
 def test_at_least_four_styles_ship():
     """thesis_long, thesis_short and two more are shipped."""
     names = {os.path.basename(s)[:-5] for s in STYLES}
     assert {'thesis_long', 'thesis_short'} <= names and len(names) >= 4
+
+
+def test_shipped_styles_are_the_tracked_files_and_saves_keep_off_them(tmp_path, monkeypatch):
+    """
+    SHIPPED_STYLES names the hairstyle files git tracks; a save never replaces one of them.
+
+    A style a user saved beside them (the shipped directory is the only hairstyle directory
+    by default) is refused without overwrite and replaced with it; a new name is written.
+    """
+    import subprocess
+
+    from hair_sim.modeling.errors import HairstyleError
+    from hair_sim.modeling.safepath import resolve_save_path
+    root = os.path.dirname(paths.config_dir())
+    out = subprocess.run(['git', 'ls-files', 'config/hairstyles'], cwd=root,
+                         capture_output=True, text=True)
+    if out.returncode != 0 or not out.stdout.strip():
+        pytest.skip('not a git checkout')
+    tracked = sorted(os.path.basename(f)[:-5] for f in out.stdout.split()
+                     if f.endswith('.yaml'))
+    assert tracked == paths.shipped_style_names()
+    shipped_dir = tmp_path / 'hairstyles'
+    shipped_dir.mkdir()
+    for name in paths.SHIPPED_STYLES + ('mine',):
+        (shipped_dir / (name + '.yaml')).write_text('x')
+    monkeypatch.setattr(paths, 'hairstyles_dir', lambda: str(shipped_dir))
+    for name in paths.SHIPPED_STYLES:
+        for overwrite in (False, True):
+            with pytest.raises(HairstyleError, match='shipped'):
+                resolve_save_path(name, [''], overwrite)
+    with pytest.raises(HairstyleError, match='exists'):
+        resolve_save_path('mine', [''], False)
+    assert resolve_save_path('mine', [''], True) == str(shipped_dir / 'mine.yaml')
+    assert resolve_save_path('new', [''], False) == str(shipped_dir / 'new.yaml')
 
 
 @pytest.mark.parametrize('path', STYLES, ids=lambda p: os.path.basename(p))

@@ -1,6 +1,5 @@
 """Event-triggered sleep (thesis 4.1), long violent runs on every style, and the poles."""
 
-import glob
 import os
 
 import numpy as np
@@ -11,7 +10,7 @@ from hair_sim.physics import stability_problem
 from hair_sim.render import HairRenderer
 from hair_sim.bench.scenarios import drive, violent
 
-STYLES = sorted(glob.glob(os.path.join(paths.hairstyles_dir(), '*.yaml')))
+STYLES = [paths.shipped_style(n) for n in paths.shipped_style_names()]
 
 
 @pytest.mark.parametrize('path', STYLES, ids=os.path.basename)
