@@ -394,7 +394,11 @@ class HairSimNode(Node):
             self.meshcat.show_spheres = self._p('meshcat.show_spheres')
             self.meshcat.view = self._p('meshcat.view')
             self.meshcat.set_head(self.sim.head)              # redrawn on the next frame
-        if 'meshcat.enabled' in changed or 'meshcat.zmq_url' in changed:
+        # (a set of the values running, as `ros2 param load` of the file started with makes,
+        # keeps the viewer: restarting killed the server a browser page was connected to)
+        if ('meshcat.enabled' in changed or 'meshcat.zmq_url' in changed) and not (
+                self.meshcat is not None and self._p('meshcat.enabled')
+                and self.meshcat.zmq_url == self._p('meshcat.zmq_url')):
             if self.meshcat is not None:
                 self.meshcat.stop()
                 self.meshcat = None

@@ -1,4 +1,4 @@
-"""The meshcat server missing, killed or silent: logged, ROS goes on, reconnection follows."""
+"""The meshcat server missing, killed or silent: logged, ROS goes on, it reconnects."""
 
 import socket
 import subprocess
@@ -102,3 +102,39 @@ def test_a_silent_server_does_not_stall_ros(meshcat_node):
         stop.set()
         t.join()
         sock.close(linger=0)
+
+
+def test_a_set_of_the_running_values_keeps_the_viewer_and_a_change_restarts_it():
+    """
+    meshcat.enabled and zmq_url set to what runs keep the sink and its server.
+
+    (`ros2 param load` of the file the node started with does that; the server a browser
+    page was connected to used to be killed and started again.) Off stops the server; on
+    starts one that streams again.
+    """
+    from rclpy.parameter import Parameter
+
+    from helpers.ros import RunningNode
+    run = RunningNode(['-p', 'meshcat.enabled:=true'])
+    try:
+        ex, node = run.executor, run.node
+        sink = node.meshcat
+        assert spin_until(ex, lambda: sink.frames_sent > 3, 30.0)
+        server = sink._server
+        for params in ([Parameter('meshcat.enabled', value=True)],
+                       [Parameter('meshcat.zmq_url', value='')],
+                       [Parameter('meshcat.enabled', value=True),
+                        Parameter('meshcat.zmq_url', value='')]):
+            assert all(r.successful for r in node.set_parameters(params))
+            sent = sink.frames_sent
+            assert spin_until(ex, lambda: sink.frames_sent > sent + 3, 10.0)
+            assert node.meshcat is sink and sink._server is server and server.poll() is None
+        assert all(r.successful for r in node.set_parameters(
+            [Parameter('meshcat.enabled', value=False)]))
+        assert node.meshcat is None and server.poll() is not None
+        assert all(r.successful for r in node.set_parameters(
+            [Parameter('meshcat.enabled', value=True)]))
+        assert node.meshcat is not sink
+        assert spin_until(ex, lambda: node.meshcat.frames_sent > 3, 30.0)
+    finally:
+        run.close()
