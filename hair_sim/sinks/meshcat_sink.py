@@ -50,10 +50,15 @@ def node_path(text):
     return Path(tuple(part for part in text.split('/') if part))
 
 
-def start_server(host='127.0.0.1'):
-    """Start `meshcat.servers.zmqserver` as a subprocess; return (process, zmq_url, web_url)."""
+def start_server(on_log=None):
+    """
+    Start a meshcat server as a subprocess; return (process, zmq_url, web_url).
+
+    It is meshcat's own, with a bounded backlog per page (hair_sim.sinks.meshcat_server);
+    on_log(line), if given, takes the lines it prints about pages falling behind.
+    """
     env = dict(os.environ)
-    proc = subprocess.Popen([sys.executable, '-u', '-m', 'meshcat.servers.zmqserver'],
+    proc = subprocess.Popen([sys.executable, '-u', '-m', 'hair_sim.sinks.meshcat_server'],
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env,
                             start_new_session=True)
     zmq_url = web_url = None
@@ -71,7 +76,7 @@ def start_server(host='127.0.0.1'):
     if zmq_url is None or web_url is None:
         proc.kill()
         raise RuntimeError('the meshcat server did not start')
-    threading.Thread(target=_drain, args=(proc,), daemon=True).start()
+    threading.Thread(target=_drain, args=(proc, on_log), daemon=True).start()
     # The server runs in its own session, so nothing stops it but this process: should
     # this process end without MeshcatSink.stop (an error or a Ctrl-C while the node is
     # still being built), it is killed at exit rather than left holding its port.
@@ -85,9 +90,12 @@ def _kill_if_running(proc):
         proc.wait(timeout=5.0)
 
 
-def _drain(proc):
-    for _ in iter(proc.stdout.readline, b''):
-        pass
+def _drain(proc, on_log=None):
+    from hair_sim.sinks.meshcat_server import LOG_PREFIX
+    for raw in iter(proc.stdout.readline, b''):
+        line = raw.decode('utf-8', 'replace').strip()
+        if on_log is not None and line.startswith(LOG_PREFIX):
+            on_log(line[len(LOG_PREFIX):].strip())
 
 
 class MeshcatClient:
@@ -207,11 +215,15 @@ class MeshcatSink:
         if self.log is not None and not self._stop.is_set():
             self.log.warning(msg, throttle_duration_sec=5.0)
 
+    def _info(self, msg):
+        if self.log is not None and not self._stop.is_set():
+            self.log.info(msg, throttle_duration_sec=5.0)
+
     def _connect(self):
         url = self.zmq_url
         if not url:
             if self._server is None or self._server.poll() is not None:
-                self._server, url, web = start_server()
+                self._server, url, web = start_server(on_log=self._info)
                 self.zmq_url_started = url
             else:
                 url = self.zmq_url_started

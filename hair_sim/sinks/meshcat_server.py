@@ -1,0 +1,112 @@
+"""
+The meshcat server hair_sim starts: meshcat's own, with a bounded backlog per page.
+
+It is meshcat's bridge (meshcat.servers.zmqserver) with one change. meshcat's bridge
+writes every command to every page at once, and tornado keeps whatever a page has not read
+yet, without limit. A page that stops reading (a frozen background tab, an ssh tunnel whose
+far end sleeps) grew the server by the stream's rate, about 6.5 MB a second with
+thesis_long, for as long as it lasted (2026-11-29: 52 MB to 377 MB in 50 s), and a page on
+a link slower than the stream showed the hair ever later (20 s late after 30 s).
+
+Here a page more than MAX_BACKLOG bytes behind is sent nothing more until it has read all it
+was sent. Then it is sent the scene as it is now, from the bridge's scene tree, as a page
+that just opened is. So a slow page skips the frames it could not take and shows the newest,
+and the server holds at most about MAX_BACKLOG and one scene per page. Pages that keep up
+get every command, as before.
+
+Run as `python -m hair_sim.sinks.meshcat_server [--zmq-url URL]`; it prints its zmq_url and
+web_url lines as meshcat's server does, and a line starting with LOG_PREFIX when a page
+falls behind or catches up (meshcat_sink.start_server passes those to the node's log).
+"""
+
+import argparse
+import functools
+import sys
+
+from meshcat.servers.tree import walk
+from meshcat.servers.zmqserver import ZMQWebSocketBridge
+from tornado.websocket import WebSocketClosedError
+
+MAX_BACKLOG = 2 ** 20         # bytes; a thesis_long frame is about 0.33 MB, its scene 0.53
+LOG_PREFIX = 'hair_sim:'
+
+
+class BoundedBridge(ZMQWebSocketBridge):
+    """meshcat's zmq-to-websocket bridge, with a page more than MAX_BACKLOG behind skipped."""
+
+    def __init__(self, *args, max_backlog=MAX_BACKLOG, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.max_backlog = int(max_backlog)
+        self.skipped = 0                      # commands not sent to a page that was behind
+
+    def forward_to_websockets(self, frames):
+        """Send a command to every page that is not behind (meshcat's bridge sends to all)."""
+        _cmd, _path, data = frames
+        for websocket in list(self.websocket_pool):
+            self._send_if_keeping_up(websocket, data)
+
+    def send_scene(self, websocket):
+        """Send the whole scene tree to a page (one that opened, or one that caught up)."""
+        for node in walk(self.tree):
+            messages = ([node.object] if node.object is not None else []) + list(
+                node.properties)
+            for extra in (node.transform, node.animation):
+                if extra is not None:
+                    messages.append(extra)
+            for data in messages:
+                self._write(websocket, data)
+
+    def _send_if_keeping_up(self, websocket, data):
+        backlog = getattr(websocket, 'hair_sim_backlog', 0)
+        if getattr(websocket, 'hair_sim_behind', False) or backlog > self.max_backlog:
+            if not getattr(websocket, 'hair_sim_behind', False):
+                websocket.hair_sim_behind = True
+                websocket.hair_sim_skipped = 0
+                print('%s a meshcat page is %.1f MB behind; it is sent nothing more until '
+                      'it has read that, then the scene as it is then'
+                      % (LOG_PREFIX, backlog / 2 ** 20), flush=True)
+            websocket.hair_sim_skipped += 1
+            self.skipped += 1
+            return
+        self._write(websocket, data)
+
+    def _write(self, websocket, data):
+        try:
+            done = websocket.write_message(data, binary=True)
+        except WebSocketClosedError:          # closing; on_close takes it out of the pool
+            return
+        websocket.hair_sim_backlog = getattr(websocket, 'hair_sim_backlog', 0) + len(data)
+        done.add_done_callback(functools.partial(self._written, websocket, len(data)))
+
+    def _written(self, websocket, size, done):
+        if not done.cancelled():
+            done.exception()                  # a closed stream's error, taken and dropped
+        websocket.hair_sim_backlog -= size
+        if (websocket.hair_sim_backlog == 0 and getattr(websocket, 'hair_sim_behind', False)
+                and websocket in self.websocket_pool):
+            websocket.hair_sim_behind = False
+            print('%s a meshcat page caught up after %d commands skipped; sent it the scene'
+                  % (LOG_PREFIX, websocket.hair_sim_skipped), flush=True)
+            self.send_scene(websocket)
+
+
+def main(argv=None):
+    """Serve the meshcat page and take zmq commands until killed."""
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
+    parser.add_argument('--zmq-url', default=None,
+                        help='zmq address to bind (default: the first free from tcp 6000)')
+    parser.add_argument('--max-backlog', type=int, default=MAX_BACKLOG,
+                        help='bytes a page may be behind before it skips frames')
+    args = parser.parse_args(argv)
+    bridge = BoundedBridge(zmq_url=args.zmq_url, max_backlog=args.max_backlog)
+    print('zmq_url=%s' % bridge.zmq_url, flush=True)
+    print('web_url=%s' % bridge.web_url, flush=True)
+    try:
+        bridge.run()
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,132 @@
+"""The meshcat server hair_sim starts: a page that stops reading costs bounded memory."""
+
+import base64
+import os
+import socket
+import struct
+import threading
+import time
+
+from hair_sim.sinks.meshcat_server import MAX_BACKLOG
+from hair_sim.sinks.meshcat_sink import MeshcatClient, start_server
+
+FRAME_BYTES = 300_000           # about a thesis_long hair frame
+FRAMES = 100                    # 30 MB in all
+
+
+def rss_bytes(pid):
+    """Return the resident memory of process pid."""
+    with open('/proc/%d/status' % pid) as f:
+        return int(f.read().split('VmRSS:')[1].split()[0]) * 1024
+
+
+class RawPage:
+    """A websocket page on a plain socket: it reads only when told to."""
+
+    def __init__(self, web_url):
+        port = int(web_url.split(':')[2].split('/')[0])
+        self.sock = socket.socket()
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        self.sock.connect(('127.0.0.1', port))
+        key = base64.b64encode(os.urandom(16)).decode()
+        self.sock.sendall(('GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n'
+                           'Connection: Upgrade\r\nSec-WebSocket-Key: %s\r\n'
+                           'Sec-WebSocket-Version: 13\r\n\r\n' % key).encode())
+        self.buf = b''
+
+    def _need(self, n, deadline):
+        while len(self.buf) < n:
+            self.sock.settimeout(max(0.01, deadline - time.monotonic()))
+            chunk = self.sock.recv(1 << 20)
+            if not chunk:
+                raise ConnectionError('the server closed the page')
+            self.buf += chunk
+
+    def messages(self, timeout):
+        """Read and return the messages that arrive within timeout (server frames unmasked)."""
+        deadline = time.monotonic() + timeout
+        out = []
+        try:
+            self._need(4, deadline)
+            if self.buf.startswith(b'HTTP/'):
+                while b'\r\n\r\n' not in self.buf:
+                    self._need(len(self.buf) + 1, deadline)
+                self.buf = self.buf.split(b'\r\n\r\n', 1)[1]
+            while time.monotonic() < deadline:
+                self._need(2, deadline)
+                n, at = self.buf[1] & 0x7F, 2
+                if n == 126:
+                    self._need(4, deadline)
+                    n, at = struct.unpack('>H', self.buf[2:4])[0], 4
+                elif n == 127:
+                    self._need(10, deadline)
+                    n, at = struct.unpack('>Q', self.buf[2:10])[0], 10
+                self._need(at + n, deadline)
+                out.append(self.buf[at:at + n])
+                self.buf = self.buf[at + n:]
+        except socket.timeout:
+            pass
+        return out
+
+    def close(self):
+        """Close the socket."""
+        self.sock.close()
+
+
+def test_a_page_that_stops_reading_skips_frames_and_then_shows_the_newest():
+    """
+    A page that stops reading holds no more than about MAX_BACKLOG in the server.
+
+    meshcat's own server keeps all it could not send (it grew by the stream's 6.5 MB/s):
+    here 30 MB go out while one page reads nothing. The server grows by less than a
+    third of that; a page that keeps up gets every frame; the stalled page, once it reads
+    again, gets fewer, the newest last, and then new frames as they come.
+    """
+    from websockets.sync.client import connect
+    assert FRAMES * FRAME_BYTES > 20 * MAX_BACKLOG
+    proc, zmq_url, web_url = start_server()
+    client = MeshcatClient(zmq_url)
+    stalled = RawPage(web_url)
+    got = []
+    stop = threading.Event()
+
+    def keep_up():
+        with connect(web_url.split('/static')[0].replace('http', 'ws') + '/',
+                     max_size=None) as ws:
+            while not stop.is_set():
+                try:
+                    got.append(ws.recv(timeout=0.2))
+                except TimeoutError:
+                    pass
+
+    reader = threading.Thread(target=keep_up, daemon=True)
+    try:
+        reader.start()
+        time.sleep(1.0)
+        rss0 = rss_bytes(proc.pid)
+        frames = [os.urandom(FRAME_BYTES) for _ in range(FRAMES)]
+        grew = 0
+        for data in frames:
+            assert client.request([b'set_object', b'/hair_sim/hair', data]) == b'ok'
+            grew = max(grew, rss_bytes(proc.pid) - rss0)
+            time.sleep(0.01)
+        deadline = time.monotonic() + 20
+        while len(got) < FRAMES and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert got == frames                       # the page that keeps up: every frame
+        assert grew < FRAMES * FRAME_BYTES / 3, grew / 2 ** 20
+
+        seen = stalled.messages(timeout=5.0)
+        assert frames[0] in seen                   # what it was sent before it fell behind
+        assert len(seen) < FRAMES / 2, len(seen)   # frames skipped
+        assert seen[-1] == frames[-1]              # the scene as it is now: the newest
+        newer = os.urandom(FRAME_BYTES)
+        assert client.request([b'set_object', b'/hair_sim/hair', newer]) == b'ok'
+        assert stalled.messages(timeout=3.0) == [newer]     # caught up: sent again
+    finally:
+        stop.set()
+        reader.join(timeout=5.0)
+        stalled.close()
+        client.close()
+        proc.kill()
+        proc.wait()
