@@ -9,10 +9,10 @@ thesis_long, for as long as it lasted (2026-11-29: 52 MB to 377 MB in 50 s), and
 a link slower than the stream showed the hair ever later (20 s late after 30 s).
 
 Here a page more than MAX_BACKLOG bytes behind is sent nothing more until it has read all it
-was sent. Then it is sent the scene as it is now, from the bridge's scene tree, as a page
-that just opened is. So a slow page skips the frames it could not take and shows the newest,
-and the server holds at most about MAX_BACKLOG and one scene per page. Pages that keep up
-get every command, as before.
+was sent. Then it is sent the deletes it missed, and the scene as it is now, from the
+bridge's scene tree, as a page that just opened is. So a slow page skips the frames it could
+not take and shows the newest, and the server holds at most about MAX_BACKLOG, one scene
+and the missed deletes per page. Pages that keep up get every command, as before.
 
 Run as `python -m hair_sim.sinks.meshcat_server [--zmq-url URL]`; it prints its zmq_url and
 web_url lines as meshcat's server does, and a line starting with LOG_PREFIX when a page
@@ -41,9 +41,9 @@ class BoundedBridge(ZMQWebSocketBridge):
 
     def forward_to_websockets(self, frames):
         """Send a command to every page that is not behind (meshcat's bridge sends to all)."""
-        _cmd, _path, data = frames
+        cmd, _path, data = frames
         for websocket in list(self.websocket_pool):
-            self._send_if_keeping_up(websocket, data)
+            self._send_if_keeping_up(websocket, cmd, data)
 
     def send_scene(self, websocket):
         """Send the whole scene tree to a page (one that opened, or one that caught up)."""
@@ -56,17 +56,23 @@ class BoundedBridge(ZMQWebSocketBridge):
             for data in messages:
                 self._write(websocket, data)
 
-    def _send_if_keeping_up(self, websocket, data):
+    def _send_if_keeping_up(self, websocket, cmd, data):
         backlog = getattr(websocket, 'hair_sim_backlog', 0)
         if getattr(websocket, 'hair_sim_behind', False) or backlog > self.max_backlog:
             if not getattr(websocket, 'hair_sim_behind', False):
                 websocket.hair_sim_behind = True
                 websocket.hair_sim_skipped = 0
+                websocket.hair_sim_deletes = {}
                 print('%s a meshcat page is %.1f MB behind; it is sent nothing more until '
                       'it has read that, then the scene as it is then'
                       % (LOG_PREFIX, backlog / 2 ** 20), flush=True)
             websocket.hair_sim_skipped += 1
             self.skipped += 1
+            # the scene tree holds what is, not what went: a delete the page missed is
+            # sent before the scene (the objects it took away may still be on the page);
+            # once per path, in order
+            if cmd == b'delete':
+                websocket.hair_sim_deletes[data] = None
             return
         self._write(websocket, data)
 
@@ -87,6 +93,9 @@ class BoundedBridge(ZMQWebSocketBridge):
             websocket.hair_sim_behind = False
             print('%s a meshcat page caught up after %d commands skipped; sent it the scene'
                   % (LOG_PREFIX, websocket.hair_sim_skipped), flush=True)
+            deletes, websocket.hair_sim_deletes = websocket.hair_sim_deletes, {}
+            for data in deletes:
+                self._write(websocket, data)
             self.send_scene(websocket)
 
 

@@ -130,3 +130,38 @@ def test_a_page_that_stops_reading_skips_frames_and_then_shows_the_newest():
         client.close()
         proc.kill()
         proc.wait()
+
+
+def test_a_page_that_fell_behind_is_sent_the_deletes_it_missed_before_the_scene():
+    """
+    A page that skipped a delete (a style load redraws the head) loses what went.
+
+    The scene tree only holds what is: resending it alone would leave the old head's
+    spheres on the page under the new head's mesh.
+    """
+    proc, zmq_url, web_url = start_server()
+    client = MeshcatClient(zmq_url)
+    stalled = RawPage(web_url)
+    try:
+        sphere = b'sphere' + os.urandom(100)
+        assert client.request([b'set_object', b'/hair_sim/head/sphere_0', sphere]) == b'ok'
+        frames = [os.urandom(FRAME_BYTES) for _ in range(40)]
+        for data in frames:
+            assert client.request([b'set_object', b'/hair_sim/hair', data]) == b'ok'
+        gone = b'delete' + os.urandom(100)
+        mesh = b'mesh' + os.urandom(100)
+        for _ in range(2):                          # a second delete of it: sent once
+            assert client.request([b'delete', b'/hair_sim/head', gone]) == b'ok'
+            assert client.request([b'set_object', b'/hair_sim/head/mesh', mesh]) == b'ok'
+        seen = stalled.messages(timeout=5.0)
+        assert sphere in seen and frames[0] in seen
+        assert sum(f in seen for f in frames) < len(frames) / 2     # it fell behind
+        assert seen.count(gone) == 1
+        after = seen[seen.index(gone):]
+        assert mesh in after and sphere not in after and after[-1] in (mesh, frames[-1])
+        assert frames[-1] in after
+    finally:
+        stalled.close()
+        client.close()
+        proc.kill()
+        proc.wait()
