@@ -42,8 +42,12 @@ class RawPage:
                 raise ConnectionError('the server closed the page')
             self.buf += chunk
 
-    def messages(self, timeout):
-        """Read and return the messages that arrive within timeout (server frames unmasked)."""
+    def messages(self, timeout, last=None):
+        """
+        Read and return the messages that arrive within timeout (server frames unmasked).
+
+        If last is given, return as soon as it arrived.
+        """
         deadline = time.monotonic() + timeout
         out = []
         try:
@@ -64,6 +68,8 @@ class RawPage:
                 self._need(at + n, deadline)
                 out.append(self.buf[at:at + n])
                 self.buf = self.buf[at + n:]
+                if last is not None and out[-1] == last:
+                    break
         except socket.timeout:
             pass
         return out
@@ -116,13 +122,13 @@ def test_a_page_that_stops_reading_skips_frames_and_then_shows_the_newest():
         assert got == frames                       # the page that keeps up: every frame
         assert grew < FRAMES * FRAME_BYTES / 3, grew / 2 ** 20
 
-        seen = stalled.messages(timeout=5.0)
+        seen = stalled.messages(timeout=10.0, last=frames[-1])
         assert frames[0] in seen                   # what it was sent before it fell behind
         assert len(seen) < FRAMES / 2, len(seen)   # frames skipped
         assert seen[-1] == frames[-1]              # the scene as it is now: the newest
         newer = os.urandom(FRAME_BYTES)
         assert client.request([b'set_object', b'/hair_sim/hair', newer]) == b'ok'
-        assert stalled.messages(timeout=3.0) == [newer]     # caught up: sent again
+        assert stalled.messages(timeout=3.0, last=newer) == [newer]   # caught up: sent again
     finally:
         stop.set()
         reader.join(timeout=5.0)
