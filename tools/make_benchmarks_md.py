@@ -13,6 +13,7 @@ Write BENCHMARKS.md from the JSON and plots of a full benchmark run in doc/bench
         > doc/bench/settle_articulated_shape.json
     .venv/bin/hair_sim_bench style --json > doc/bench/style.json
     .venv/bin/hair_sim_bench fall --json --plots doc/bench > doc/bench/fall.json
+    .venv/bin/hair_sim_bench viewer --json > doc/bench/viewer.json
     .venv/bin/python tools/make_benchmarks_md.py
 """
 
@@ -694,6 +695,37 @@ def settle_section(by_model):
     return out
 
 
+def viewer_section(rows):
+    """Return the section on the meshcat servers with a stalled and a slow page."""
+    by = {(r['server'], r['page'] == 'stopped reading'): r for r in rows}
+    parts = ['## A browser page that cannot keep up (`hair_sim_bench viewer --json`)', '',
+             'The meshcat server the node starts (`hair_sim.sinks.meshcat_server`) and '
+             'meshcat\'s own (`meshcat.servers.zmqserver`, the node uses it when '
+             '`meshcat.zmq_url` names one), each fed a %.0f KB frame %.0f times a second, as '
+             'the node feeds thesis_long in `make demo`. One page keeps up throughout. '
+             'Another stops reading (a frozen tab, an ssh tunnel whose far end sleeps), '
+             'then one reads %.0f messages a second (a link slower than the stream). A '
+             'frame\'s age is how long before the page that keeps up had the same one.'
+             % (rows[0].get('frame_kb', 337), rows[0].get('rate', 20),
+                rows[0].get('slow_reads', 20)), '',
+             '| server | stopped page: sent over %.0f s | server grew | slow page: frames/s '
+             '| its hair\'s age, at most | at the end | the page that keeps up: frames/s |'
+             % rows[0]['seconds'],
+             '| --- | --- | --- | --- | --- | --- | --- |']
+    for server in ('hair_sim', 'meshcat'):
+        st, sl = by[(server, True)], by[(server, False)]
+        parts.append('| %s | %.0f MB | %.1f MB | %.1f | %.2f s | %.2f s | %.1f, %.1f |' % (
+            server, st['mb_sent'], st['server_growth_mb'], sl['slow_fps'], sl['age_s_max'],
+            sl['age_s_last'], st['keeping_up_fps'], sl['keeping_up_fps']))
+    parts += ['', '**Reading.** meshcat\'s server keeps whatever a page has not read, so it '
+              'grows by the stream for as long as a page is stalled, and a slow page falls '
+              'ever further behind. hair_sim\'s sends a page nothing more once it is 1 MiB '
+              'behind, then, when it has read that, the deletes it missed and the scene as it '
+              'is then: the page skips what it could not take. What is left of a slow page\'s '
+              'age is the operating system\'s socket buffers and the page\'s own queue.', '']
+    return parts
+
+
 def main():
     """Write BENCHMARKS.md."""
     acc = load('accuracy')
@@ -922,6 +954,8 @@ def main():
         parts += style_section(load('style'))
     if os.path.exists(os.path.join(BENCH, 'head_fit.json')):
         parts += head_fit_section(load('head_fit'))
+    if os.path.exists(os.path.join(BENCH, 'viewer.json')):
+        parts += viewer_section(load('viewer'))
     with open(os.path.join(ROOT, 'BENCHMARKS.md'), 'w') as f:
         f.write('\n'.join(parts))
     print('wrote BENCHMARKS.md')

@@ -21,6 +21,9 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
     hair_sim_bench fall     [--json] [--quick] [--plots DIR]   the strands the stress
                                 gale leaves moving (articulated), run on in MuJoCo from the
                                 same state (make bench-deps)
+    hair_sim_bench viewer   [--json] [--quick]                 a browser page that stops
+                                reading or reads slowly: the meshcat server's memory and
+                                how old the page's hair gets (hair_sim's server, meshcat's)
 """
 
 import argparse
@@ -59,7 +62,7 @@ def main(argv=None):
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress', 'settle',
                                             'node', 'budget', 'hanging', 'style',
-                                            'fall'])
+                                            'fall', 'viewer'])
     parser.add_argument('--json', action='store_true', help='print JSON on stdout')
     parser.add_argument('--quick', action='store_true', help='a short run (under a minute)')
     parser.add_argument('--plots', default='bench_out', help='directory for PNG plots')
@@ -123,6 +126,9 @@ def main(argv=None):
             return 1
         from hair_sim.bench import fall
         emit(fall.run(args.quick, args.plots), args.json, 'fall')
+    elif args.command == 'viewer':
+        from hair_sim.bench import viewer
+        emit(viewer.run(args.quick), args.json, 'viewer')
     elif args.command == 'skip':
         from hair_sim.bench import skip
         emit(skip.run(args.quick), args.json, 'skip')

@@ -50,15 +50,16 @@ def node_path(text):
     return Path(tuple(part for part in text.split('/') if part))
 
 
-def start_server(on_log=None):
+def start_server(on_log=None, module='hair_sim.sinks.meshcat_server'):
     """
     Start a meshcat server as a subprocess; return (process, zmq_url, web_url).
 
-    It is meshcat's own, with a bounded backlog per page (hair_sim.sinks.meshcat_server);
+    It is meshcat's own, with a bounded backlog per page (hair_sim.sinks.meshcat_server;
+    module 'meshcat.servers.zmqserver' starts meshcat's own as it is, for comparison).
     on_log(line), if given, takes the lines it prints about pages falling behind.
     """
     env = dict(os.environ)
-    proc = subprocess.Popen([sys.executable, '-u', '-m', 'hair_sim.sinks.meshcat_server'],
+    proc = subprocess.Popen([sys.executable, '-u', '-m', module],
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env,
                             start_new_session=True)
     zmq_url = web_url = None

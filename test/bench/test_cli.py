@@ -112,6 +112,21 @@ def test_skip_quick(tmp_path):
     assert all(r['work_ms'] > 0 and r['skipped_ms'] > 0 for r in records)
 
 
+def test_viewer_quick(tmp_path):
+    """Both servers with a stalled and a slow page; hair_sim's keeps what it holds bounded."""
+    rc, records = bench('viewer', tmp_path)
+    assert rc == 0
+    assert {(r['server'], r['page'] == 'stopped reading') for r in records} == {
+        ('hair_sim', True), ('hair_sim', False), ('meshcat', True), ('meshcat', False)}
+    for r in records:
+        assert r['keeping_up_fps'] >= 0.8 * r['rate'] if 'rate' in r else True
+        assert r['page_errors'] == []
+    ours = next(r for r in records if r['server'] == 'hair_sim' and 'mb_sent' in r)
+    assert ours['mb_sent'] > 10 and ours['server_growth_mb'] < 0.25 * ours['mb_sent']
+    slow = [r for r in records if 'slow_fps' in r]
+    assert all(r['slow_fps'] > 0 and r['age_s_max'] is not None for r in slow)
+
+
 @pytest.mark.parametrize('command', ['stress'])
 def test_stress_quick(tmp_path, command):
     """Cases with the documented metrics, a stability map; exit 0: promised cases pass."""
