@@ -20,8 +20,7 @@ import socket
 import threading
 import time
 
-SERVERS = (('hair_sim', 'hair_sim.sinks.meshcat_server'),
-           ('meshcat', 'meshcat.servers.zmqserver'))
+SERVERS = (('hair_sim', False), ('meshcat', True))     # name, meshcat's own
 FRAME_BYTES = 337_000       # a thesis_long hair frame in make demo (set_object, msgpack)
 RATE = 20.0                 # the node's meshcat.rate
 SLOW_READS = 10.0           # messages a second the slow page reads: half the stream
@@ -101,10 +100,10 @@ def _feed(client, seconds, on_tick=None):
     return n
 
 
-def measure(server, module, seconds):
+def measure(server, meshcats_own, seconds):
     """Return the stalled-page and slow-page records of one server."""
     from hair_sim.sinks.meshcat_sink import MeshcatClient, start_server
-    proc, zmq_url, web_url = start_server(module=module)
+    proc, zmq_url, web_url = start_server(meshcats_own=meshcats_own)
     client = MeshcatClient(zmq_url)
     fast = _Page(web_url)
     pages = [fast]
@@ -162,6 +161,6 @@ def run(quick):
     """Return the records of both servers (quick: 3 s a case, else 30 s)."""
     seconds = 3.0 if quick else 30.0
     rows = []
-    for server, module in SERVERS:
-        rows += measure(server, module, seconds)
+    for server, meshcats_own in SERVERS:
+        rows += measure(server, meshcats_own, seconds)
     return rows

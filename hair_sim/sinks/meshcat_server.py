@@ -14,8 +14,9 @@ bridge's scene tree, as a page that just opened is. So a slow page skips the fra
 not take and shows the newest, and the server holds at most about MAX_BACKLOG, one scene
 and the missed deletes per page. Pages that keep up get every command, as before.
 
-Run as `python -m hair_sim.sinks.meshcat_server [--zmq-url URL]`; it prints its zmq_url and
-web_url lines as meshcat's server does, and a line starting with LOG_PREFIX when a page
+Run as `python hair_sim/sinks/meshcat_server.py [--zmq-url URL]` (a file, so that the server
+does not import the hair_sim package: 52 MB instead of 115-176 MB). It prints its zmq_url
+and web_url lines as meshcat's server does, and a line starting with LOG_PREFIX when a page
 falls behind or catches up (meshcat_sink.start_server passes those to the node's log).
 """
 

@@ -19,6 +19,7 @@ import numpy as np
 from hair_sim.sinks.markers import SKIN_RGB
 
 SERVER_START_TIMEOUT = 20.0
+SERVER_SCRIPT = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'meshcat_server.py')
 REPLY_TIMEOUT_MS = 3000
 RETRY_PERIOD = 2.0
 
@@ -50,16 +51,18 @@ def node_path(text):
     return Path(tuple(part for part in text.split('/') if part))
 
 
-def start_server(on_log=None, module='hair_sim.sinks.meshcat_server'):
+def start_server(on_log=None, meshcats_own=False):
     """
     Start a meshcat server as a subprocess; return (process, zmq_url, web_url).
 
-    It is meshcat's own, with a bounded backlog per page (hair_sim.sinks.meshcat_server;
-    module 'meshcat.servers.zmqserver' starts meshcat's own as it is, for comparison).
-    on_log(line), if given, takes the lines it prints about pages falling behind.
+    It is meshcat's own with a bounded backlog per page (hair_sim/sinks/meshcat_server.py,
+    run as a file: `-m hair_sim.sinks...` would import the whole package, numba and all,
+    into the server), or with meshcats_own meshcat's as it is, for comparison. on_log(line),
+    if given, takes the lines it prints about pages falling behind.
     """
     env = dict(os.environ)
-    proc = subprocess.Popen([sys.executable, '-u', '-m', module],
+    server = ['-m', 'meshcat.servers.zmqserver'] if meshcats_own else [SERVER_SCRIPT]
+    proc = subprocess.Popen([sys.executable, '-u'] + server,
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env,
                             start_new_session=True)
     zmq_url = web_url = None

@@ -171,3 +171,16 @@ def test_a_page_that_fell_behind_is_sent_the_deletes_it_missed_before_the_scene(
         client.close()
         proc.kill()
         proc.wait()
+
+
+def test_the_server_does_not_load_the_simulator():
+    """The server is a small process: it does not import hair_sim (numba, the solvers)."""
+    proc, _, _ = start_server()
+    try:
+        with open('/proc/%d/maps' % proc.pid) as f:
+            maps = f.read()
+        assert 'numpy' in maps or 'zmq' in maps         # (it does load libraries)
+        assert 'numba' not in maps and 'llvmlite' not in maps
+    finally:
+        proc.kill()
+        proc.wait()
