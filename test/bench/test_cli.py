@@ -118,8 +118,9 @@ def test_viewer_quick(tmp_path):
     assert rc == 0
     assert {(r['server'], r['page'] == 'stopped reading') for r in records} == {
         ('hair_sim', True), ('hair_sim', False), ('meshcat', True), ('meshcat', False)}
+    from hair_sim.bench.viewer import RATE
     for r in records:
-        assert r['keeping_up_fps'] >= 0.8 * r['rate'] if 'rate' in r else True
+        assert r['keeping_up_fps'] >= 0.8 * RATE         # the page that keeps up: every frame
         assert r['page_errors'] == []
     ours = next(r for r in records if r['server'] == 'hair_sim' and 'mb_sent' in r)
     assert ours['mb_sent'] > 10 and ours['server_growth_mb'] < 0.25 * ours['mb_sent']
