@@ -24,9 +24,10 @@ import argparse
 import functools
 import sys
 
-from meshcat.servers.tree import walk
+from meshcat.servers.tree import find_node, walk
 from meshcat.servers.zmqserver import ZMQWebSocketBridge
 from tornado.websocket import WebSocketClosedError
+import umsgpack
 
 MAX_BACKLOG = 2 ** 20         # bytes; a thesis_long frame is about 0.33 MB, its scene 0.53
 LOG_PREFIX = 'hair_sim:'
@@ -39,6 +40,25 @@ class BoundedBridge(ZMQWebSocketBridge):
         super().__init__(*args, **kwargs)
         self.max_backlog = int(max_backlog)
         self.skipped = 0                      # commands not sent to a page that was behind
+
+    def handle_zmq(self, frames):
+        """
+        Take a command as meshcat's bridge does, keeping one set_property per property.
+
+        meshcat's bridge appends every set_property to its node for good, and sends them
+        all to every page that opens (or here, catches up): the node sets the camera and
+        hides the grid and axes on every redraw (a style load, a view change), so after a
+        hostile client's 600 loads a page that opened was sent some 1800 of them. The
+        last value of a property is all a page shows.
+        """
+        super().handle_zmq(frames)
+        if len(frames) == 3 and frames[0] == b'set_property':
+            try:
+                path = [p for p in frames[1].decode('utf-8').split('/') if p]
+                node = find_node(self.tree, path)
+                node.properties = latest_per_property(node.properties)
+            except (UnicodeDecodeError, KeyError):
+                pass
 
     def forward_to_websockets(self, frames):
         """Send a command to every page that is not behind (meshcat's bridge sends to all)."""
@@ -98,6 +118,23 @@ class BoundedBridge(ZMQWebSocketBridge):
             for data in deletes:
                 self._write(websocket, data)
             self.send_scene(websocket)
+
+
+def latest_per_property(properties):
+    """
+    Return the set_property commands (msgpack) with only the last one of each property.
+
+    Each property keeps the place of its first command; a command that does not unpack
+    to a dict with a 'property' is kept as it is.
+    """
+    last = {}
+    for i, data in enumerate(properties):
+        try:
+            name = umsgpack.unpackb(data).get('property')
+        except Exception:                        # noqa: B902 - anything that does not unpack
+            name = None
+        last[('name', name) if isinstance(name, str) else ('index', i)] = data
+    return list(last.values())
 
 
 def main(argv=None):

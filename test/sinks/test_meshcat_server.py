@@ -184,3 +184,37 @@ def test_the_server_does_not_load_the_simulator():
     finally:
         proc.kill()
         proc.wait()
+
+
+def test_a_page_that_opens_gets_the_last_value_of_each_property_once():
+    """
+    Redraws set the same properties again; a page that opens gets each one's last value.
+
+    meshcat's own server appends them all to the scene and replays them to every new page
+    (the node sets three on each redraw: after 600 style loads, 1800 of them).
+    """
+    import umsgpack
+    from meshcat.commands import SetProperty
+    from hair_sim.sinks.meshcat_sink import node_path
+    proc, zmq_url, web_url = start_server()
+    client = MeshcatClient(zmq_url)
+    page = None
+    try:
+        for i in range(50):
+            client.send(SetProperty('visible', i % 2 == 0, node_path('/Grid')))
+            client.send(SetProperty('position', [float(i), 0.0, 1.0],
+                                    node_path('/Cameras/default/rotated/<object>')))
+        client.send(SetProperty('visible', True, node_path('/Axes')))
+        page = RawPage(web_url)
+        sent = [umsgpack.unpackb(m) for m in page.messages(timeout=2.0)]
+        got = sorted((m['path'], m['property'], str(m['value'])) for m in sent)
+        assert got == sorted([('/Grid', 'visible', 'False'),
+                              ('/Cameras/default/rotated/<object>', 'position',
+                               str([49.0, 0.0, 1.0])),
+                              ('/Axes', 'visible', 'True')])
+    finally:
+        if page is not None:
+            page.close()
+        client.close()
+        proc.kill()
+        proc.wait()
