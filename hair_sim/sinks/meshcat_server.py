@@ -41,6 +41,22 @@ class BoundedBridge(ZMQWebSocketBridge):
         self.max_backlog = int(max_backlog)
         self.skipped = 0                      # commands not sent to a page that was behind
 
+    def make_app(self):
+        """
+        Return meshcat's web app, listening on the bridge's host (127.0.0.1) only.
+
+        meshcat's bridge puts its host in the URL it prints, but its page and websocket
+        listened on every interface (0.0.0.0 and [::]), so anyone on the network could
+        open pages on it; from another machine, forward the port (ssh -L) instead.
+        """
+        app = super().make_app()
+        listen = app.listen
+        app.listen = functools.partial(self._listen_on_host, listen)
+        return app
+
+    def _listen_on_host(self, listen, port, **kwargs):
+        return listen(port, address=self.host, **kwargs)
+
     def handle_zmq(self, frames):
         """
         Take a command as meshcat's bridge does, keeping one set_property per property.

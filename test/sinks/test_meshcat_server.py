@@ -218,3 +218,37 @@ def test_a_page_that_opens_gets_the_last_value_of_each_property_once():
         client.close()
         proc.kill()
         proc.wait()
+
+
+def listening_sockets(pid):
+    """Return (address as /proc/net shows it, port) of each TCP socket pid listens on."""
+    inodes = set()
+    for fd in os.listdir('/proc/%d/fd' % pid):
+        try:
+            target = os.readlink('/proc/%d/fd/%s' % (pid, fd))
+        except OSError:
+            continue
+        if target.startswith('socket:['):
+            inodes.add(target[8:-1])
+    out = []
+    for table in ('tcp', 'tcp6'):
+        with open('/proc/net/' + table) as f:
+            for line in f.read().splitlines()[1:]:
+                fields = line.split()
+                if fields[3] == '0A' and fields[9] in inodes:          # LISTEN
+                    address, port = fields[1].split(':')
+                    out.append((address, int(port, 16)))
+    return out
+
+
+def test_the_page_is_served_on_the_loopback_only():
+    """The page and its websocket listen on 127.0.0.1 (the URL's host), not every interface."""
+    proc, zmq_url, web_url = start_server()
+    try:
+        web_port = int(web_url.split(':')[2].split('/')[0])
+        sockets = listening_sockets(proc.pid)
+        assert web_port in [port for _, port in sockets], sockets
+        assert all(address == '0100007F' for address, _ in sockets), sockets
+    finally:
+        proc.kill()
+        proc.wait()
