@@ -1,12 +1,14 @@
 """
 The meshcat server hair_sim starts: meshcat's own, with a bounded backlog per page.
 
-It is meshcat's bridge (meshcat.servers.zmqserver) with one change. meshcat's bridge
-writes every command to every page at once, and tornado keeps whatever a page has not read
-yet, without limit. A page that stops reading (a frozen background tab, an ssh tunnel whose
-far end sleeps) grew the server by the stream's rate, about 6.5 MB a second with
-thesis_long, for as long as it lasted (2026-11-29: 52 MB to 377 MB in 50 s), and a page on
-a link slower than the stream showed the hair ever later (20 s late after 30 s).
+It is meshcat's bridge (meshcat.servers.zmqserver) with a backlog per page, the scene it
+sends a page holding each property once, and its page served on 127.0.0.1 only (see
+BoundedBridge's methods). meshcat's bridge writes every command to every page at once,
+and tornado keeps whatever a page has not read yet, without limit. A page that stops
+reading (a frozen background tab, an ssh tunnel whose far end sleeps) grew the server by
+the stream's rate, about 6.5 MB a second with thesis_long, for as long as it lasted
+(2026-11-29: 52 MB to 377 MB in 50 s), and a page on a link slower than the stream showed
+the hair ever later (20 s late after 30 s).
 
 Here a page more than MAX_BACKLOG bytes behind is sent nothing more until it has read all it
 was sent. Then it is sent the deletes it missed, and the scene as it is now, from the
@@ -23,6 +25,7 @@ falls behind or catches up (meshcat_sink.start_server passes those to the node's
 import argparse
 import functools
 import sys
+import weakref
 
 from meshcat.servers.tree import find_node, walk
 from meshcat.servers.zmqserver import ZMQWebSocketBridge
@@ -33,13 +36,29 @@ MAX_BACKLOG = 2 ** 20         # bytes; a thesis_long frame is about 0.33 MB, its
 LOG_PREFIX = 'hair_sim:'
 
 
+class _Page:
+    """What the bridge knows of one page: bytes sent and not yet read, and if it is behind."""
+
+    def __init__(self):
+        self.backlog = 0
+        self.behind = False
+        self.skipped = 0                      # commands not sent since it fell behind
+        self.deletes = {}                     # the deletes among them, once per path
+
+
 class BoundedBridge(ZMQWebSocketBridge):
     """meshcat's zmq-to-websocket bridge, with a page more than MAX_BACKLOG behind skipped."""
 
     def __init__(self, *args, max_backlog=MAX_BACKLOG, **kwargs):
         super().__init__(*args, **kwargs)
         self.max_backlog = int(max_backlog)
-        self.skipped = 0                      # commands not sent to a page that was behind
+        self._pages = weakref.WeakKeyDictionary()      # websocket handler -> _Page
+
+    def _page(self, websocket):
+        page = self._pages.get(websocket)
+        if page is None:
+            page = self._pages[websocket] = _Page()
+        return page
 
     def make_app(self):
         """
@@ -94,43 +113,41 @@ class BoundedBridge(ZMQWebSocketBridge):
                 self._write(websocket, data)
 
     def _send_if_keeping_up(self, websocket, cmd, data):
-        backlog = getattr(websocket, 'hair_sim_backlog', 0)
-        if getattr(websocket, 'hair_sim_behind', False) or backlog > self.max_backlog:
-            if not getattr(websocket, 'hair_sim_behind', False):
-                websocket.hair_sim_behind = True
-                websocket.hair_sim_skipped = 0
-                websocket.hair_sim_deletes = {}
-                print('%s a meshcat page is %.1f MB behind; it is sent nothing more until '
-                      'it has read that, then the scene as it is then'
-                      % (LOG_PREFIX, backlog / 2 ** 20), flush=True)
-            websocket.hair_sim_skipped += 1
-            self.skipped += 1
-            # the scene tree holds what is, not what went: a delete the page missed is
-            # sent before the scene (the objects it took away may still be on the page);
-            # once per path, in order
-            if cmd == b'delete':
-                websocket.hair_sim_deletes[data] = None
+        page = self._page(websocket)
+        if not page.behind and page.backlog > self.max_backlog:
+            page.behind = True
+            page.skipped = 0
+            print('%s a meshcat page is %.1f MB behind; it is sent nothing more until '
+                  'it has read that, then the scene as it is then'
+                  % (LOG_PREFIX, page.backlog / 2 ** 20), flush=True)
+        if not page.behind:
+            self._write(websocket, data)
             return
-        self._write(websocket, data)
+        page.skipped += 1
+        # the scene tree holds what is, not what went: a delete the page missed is sent
+        # before the scene (the objects it took away may still be on the page); once per
+        # path, in order
+        if cmd == b'delete':
+            page.deletes[data] = None
 
     def _write(self, websocket, data):
         try:
             done = websocket.write_message(data, binary=True)
         except WebSocketClosedError:          # closing; on_close takes it out of the pool
             return
-        websocket.hair_sim_backlog = getattr(websocket, 'hair_sim_backlog', 0) + len(data)
+        self._page(websocket).backlog += len(data)
         done.add_done_callback(functools.partial(self._written, websocket, len(data)))
 
     def _written(self, websocket, size, done):
         if not done.cancelled():
             done.exception()                  # a closed stream's error, taken and dropped
-        websocket.hair_sim_backlog -= size
-        if (websocket.hair_sim_backlog == 0 and getattr(websocket, 'hair_sim_behind', False)
-                and websocket in self.websocket_pool):
-            websocket.hair_sim_behind = False
+        page = self._page(websocket)
+        page.backlog -= size
+        if page.backlog == 0 and page.behind and websocket in self.websocket_pool:
+            page.behind = False
             print('%s a meshcat page caught up after %d commands skipped; sent it the scene'
-                  % (LOG_PREFIX, websocket.hair_sim_skipped), flush=True)
-            deletes, websocket.hair_sim_deletes = websocket.hair_sim_deletes, {}
+                  % (LOG_PREFIX, page.skipped), flush=True)
+            deletes, page.deletes = page.deletes, {}
             for data in deletes:
                 self._write(websocket, data)
             self.send_scene(websocket)
