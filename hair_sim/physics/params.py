@@ -6,6 +6,9 @@ A simulated strand stands for half a strip, a bundle of `hairs_per_strand` real 
 
 from dataclasses import asdict, dataclass, fields
 import math
+import numbers
+
+import numpy as np
 
 from hair_sim.physics.motion import TELEPORT_ANGLE, TELEPORT_DISTANCE
 
@@ -184,13 +187,30 @@ class PhysicsParams:
     sleep_tolerance: float = 0.0005
     sleep_delay: float = 0.3
 
+    def __post_init__(self):
+        # Every number is kept as a Python float and every flag as a bool, whatever kind the
+        # caller passed (an int, a numpy scalar): the kernels are compiled for floats. An
+        # int reached them as it came, and numba compiled the kernels again for it (11 s
+        # for contact_friction=1 on the articulated model) or failed to
+        # (max_head_acceleration=300: a TypingError from the step, after the constructor
+        # had accepted it), while numpy scalars were refused as "not a number".
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name in RANGES and _is_number(v):
+                try:
+                    setattr(self, f.name, float(v))
+                except OverflowError:             # an int past float's range: refused
+                    setattr(self, f.name, math.inf if v > 0 else -math.inf)
+            elif f.type in ('bool', bool) and isinstance(v, np.bool_):
+                setattr(self, f.name, bool(v))
+
     def validate(self):
         """Raise ValueError naming the first parameter that is out of range or mistyped."""
         for f in fields(self):
             v = getattr(self, f.name)
             if f.name in RANGES:
                 lo, hi = RANGES[f.name]
-                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                if not isinstance(v, float):
                     raise ValueError('%s must be a number, not %r' % (f.name, v))
                 if not (math.isfinite(v) and lo <= v <= hi):
                     raise ValueError('%s = %r is outside [%g, %g]' % (f.name, v, lo, hi))
@@ -227,3 +247,8 @@ class PhysicsParams:
         """Return E * I of one strand (N m^2): unbonded fibres add up."""
         return (self.stiffness_scale * self.youngs_modulus * self.hairs_per_strand
                 * math.pi * self.hair_radius ** 4 / 4.0)
+
+
+def _is_number(v):
+    """Return whether v is a real number (int, float, numpy scalar), not a flag."""
+    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
