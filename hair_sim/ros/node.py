@@ -38,6 +38,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, qos_profile_sensor_data, QoSProfile,
                        ReliabilityPolicy)
 from rclpy.task import Future
@@ -133,6 +134,12 @@ class HairSimNode(Node):
     def __init__(self, **kwargs):
         super().__init__('hair_sim', **kwargs)
         self._specs = all_parameters()
+        # an integer given for a floating-point parameter (`-p sim_rate:=120`, `sim_rate:
+        # 120` in a params file) is taken as that float: rclpy refused it, and the node
+        # stopped at start ("expecting type 'DOUBLE'"). rclpy keeps the start values
+        # where only its own declare reads them, and calls no pre-set callback there.
+        overrides = getattr(self, '_parameter_overrides', {})
+        overrides.update({p.name: p for p in self._as_declared_types(overrides.values())})
         for name, (default, description, rng) in self._specs.items():
             self.declare_parameter(name, default, _descriptor(default, description, rng))
         self.counts = Counter({'poses': 0, 'wrong_frame': 0, 'wind': 0, 'wind_rejected': 0,
@@ -216,6 +223,7 @@ class HairSimNode(Node):
                             qos_profile=SERVICE_QOS, callback_group=services)
         self.create_service(SaveHairstyle, '~/save_hairstyle', self._on_save,
                             qos_profile=SERVICE_QOS, callback_group=services)
+        self.add_pre_set_parameters_callback(self._as_declared_types)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self.frame_timer = self.create_timer(1.0 / self._p('frame_rate'), self._on_frame)
@@ -276,6 +284,17 @@ class HairSimNode(Node):
                                 throttle_duration_sec=5.0)
 
     # -------------------------------------------------------------- parameters
+    def _as_declared_types(self, params):
+        """pre-set: the parameters, an integer for a floating-point one as that float."""
+        out = []
+        for p in params:
+            spec = self._specs.get(p.name)
+            if spec is not None and type(spec[0]) is float \
+                    and p.type_ == Parameter.Type.INTEGER:
+                p = Parameter(p.name, Parameter.Type.DOUBLE, float(p.value))
+            out.append(p)
+        return out
+
     def _validate_parameters(self, params):
         """on_set: check the whole set against the running scene; change nothing here."""
         try:

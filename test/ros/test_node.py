@@ -164,6 +164,49 @@ def test_parameter_changes_take_effect_or_are_refused(node_env):
     assert res[0].successful and node.sim.params.model == 'anjyo'
 
 
+def test_an_integer_is_taken_for_a_floating_point_parameter(tmp_path):
+    """`-p sim_rate:=120`, `damping: 8` in a params file, an int set at run time."""
+    from helpers.ros import RunningNode
+
+    # (before: rclpy refused them, and the node stopped at start: "Trying to set parameter
+    # 'sim_rate' to '120' of type 'INTEGER', expecting type 'DOUBLE'")
+    extra = tmp_path / 'ints.yaml'
+    extra.write_text('hair_sim:\n  ros__parameters:\n    physics:\n      damping: 8\n')
+    run = RunningNode(['--params-file', os.path.join(paths.config_dir(), 'hair_sim.yaml'),
+                       '--params-file', str(extra), '-p', 'sim_rate:=120',
+                       '-p', 'publish_rate:=20', '-p', 'max_steps_per_frame:=12'])
+    try:
+        node = run.node
+        for name, value in [('sim_rate', 120.0), ('physics.damping', 8.0),
+                            ('publish_rate', 20.0)]:
+            prm = node.get_parameter(name)
+            assert prm.type_ == Parameter.Type.DOUBLE and prm.value == value, name
+        assert node.sim.params.damping == 8.0 and type(node.sim.params.damping) is float
+        assert node.publish_timer.timer_period_ns == int(1e9 / 20)
+        assert node.get_parameter('max_steps_per_frame').value == 12
+        res = node.set_parameters([Parameter('physics.max_head_acceleration', value=250)])
+        assert res[0].successful, res[0].reason
+        assert node.get_parameter('physics.max_head_acceleration').type_ == \
+            Parameter.Type.DOUBLE
+        assert type(node.sim.params.max_head_acceleration) is float
+        steps = node.sim.counters['steps']
+        assert spin_until(run.executor, lambda: node.sim.counters['steps'] > steps + 20, 10.0)
+        assert np.all(np.isfinite(node.sim.pos))
+        # the range still holds, and nothing else changes type
+        for prm, fragment in [(Parameter('sim_rate', value=10), 'out of range'),
+                              (Parameter('max_steps_per_frame', value=12.5),
+                               'Wrong parameter type'),
+                              (Parameter('physics.damping', value='soft'),
+                               'Wrong parameter type'),
+                              (Parameter('physics.collisions', value=1),
+                               'Wrong parameter type')]:
+            res = node.set_parameters([prm])
+            assert not res[0].successful and fragment in res[0].reason, (prm, res[0].reason)
+        assert node.get_parameter('sim_rate').value == 120.0
+    finally:
+        run.close()
+
+
 def test_services_load_edit_save_reload_reset(node_env, tmp_path):
     """Load a shipped style, edit (the mesh changes near that control hair only), save, reload."""
     from hair_sim_msgs.srv import EditControlPoint, LoadHairstyle, SaveHairstyle
