@@ -420,6 +420,28 @@ def test_sag_free_offsets_hold_a_horizontal_strand(head, n):
     assert rest[0, -1, 2] - sags.pos[0, -1, 2] > 0.01
 
 
+@pytest.mark.parametrize('root_scale', [1e-3, 1e-30, 1e-200, 1e-300])
+def test_a_follicle_of_any_softness_holds_the_style_at_the_preload_limit(head, root_scale):
+    """
+    A soft follicle is stiffened until MAX_PRELOAD of deflection holds a horizontal strand.
+
+    Its spring then carries the statics' torque, the whole strand's weight at half its
+    length, M g L / 2, and the strand stays put. (Before: at 1e-200 and below the
+    deflection's size overflowed and every step diverged.)
+    """
+    n, length = 6, 0.1
+    sim = _chain(head, [[1.0, 0.0, 0.0]] * n, length, gravity_compensation=True,
+                 root_stiffness_scale=root_scale)
+    k, offset = sim.solver.k[0, 0], np.linalg.norm(sim.solver.offset[0, 0])
+    assert offset == pytest.approx(articulated.MAX_PRELOAD, rel=1e-12)
+    weight = sim.mass[0].sum() * GRAVITY
+    assert k * offset == pytest.approx(weight * length / 2.0, rel=1e-9)
+    rest = sim.pos.copy()
+    for _ in range(int(0.5 / DEFAULT_DT)):
+        sim.step(DEFAULT_DT)
+    assert np.abs(sim.pos - rest).max() < 1e-7
+
+
 def test_preloaded_spring_is_conservative(head):
     """
     A swing about a held (preloaded) pose keeps its energy: the offset is not a follower.

@@ -2429,15 +2429,26 @@ class ArticulatedSolver:
         self.shape_dir = np.ascontiguousarray(self.modeled[..., :, 2])
         self.sag_by_height = SAG_BY_HEIGHT
         if p.gravity_compensation:
-            offset = sag_free_offsets(self.modeled, sim.length, sim.mass, self.k,
-                                      [0.0, 0.0, -p.gravity])
-            offset[..., 2] = 0.0        # a 2-DOF joint's constraint holds the twist torque
-            # a joint whose spring would need more than MAX_PRELOAD of deflection to hold
-            # the style is stiffened until MAX_PRELOAD holds it (e0 = R^T tau / k)
-            size = np.linalg.norm(offset, axis=-1)
-            factor = np.maximum(size / MAX_PRELOAD, 1.0)
-            k = self.k * factor
-            offset /= factor[..., None]
+            gravity = [0.0, 0.0, -p.gravity]
+            with np.errstate(over='ignore', invalid='ignore'):
+                offset = sag_free_offsets(self.modeled, sim.length, sim.mass, self.k, gravity)
+                offset[..., 2] = 0.0    # a 2-DOF joint's constraint holds the twist torque
+                # a joint whose spring would need more than MAX_PRELOAD of deflection to
+                # hold the style is stiffened until MAX_PRELOAD holds it (e0 = R^T tau / k)
+                size = np.linalg.norm(offset, axis=-1)
+                factor = np.maximum(size / MAX_PRELOAD, 1.0)
+                k = self.k * factor
+                offset /= factor[..., None]
+            # a follicle so soft that its deflection's size overflows (root_stiffness_scale
+            # 1e-300: every step then diverged): the same stiffening, from the torque
+            # itself, R^T tau (the offsets at k = 1)
+            soft = ~np.isfinite(size)
+            if soft.any():
+                torque = sag_free_offsets(self.modeled, sim.length, sim.mass,
+                                          np.ones_like(self.k), gravity)[soft]
+                torque[:, 2] = 0.0
+                k[soft] = np.linalg.norm(torque, axis=-1) / MAX_PRELOAD
+                offset[soft] = torque / k[soft][:, None]
             # a strand whose style is an unstable equilibrium gets stiffer joints, all of
             # them by the same factor (the offsets shrink by it: the same torques hold the
             # same pose), until its stiffness beats gravity's by STABILITY_MARGIN
