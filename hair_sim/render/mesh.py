@@ -195,6 +195,23 @@ def _f64(a):
     return np.ascontiguousarray(a, dtype=np.float64)
 
 
+def _eye(viewpoint):
+    """
+    Return a viewpoint as 3 float64s; raise ValueError unless it is 3 finite numbers.
+
+    (The kernels read its three components unchecked: a 2-vector was read past its end,
+    and a NaN one drew every strip, both without a word.)
+    """
+    try:
+        eye = _f64(viewpoint)
+    except (TypeError, ValueError):
+        eye = None
+    if eye is None or eye.shape != (3,) or not np.all(np.isfinite(eye)):
+        raise ValueError('viewpoint must be 3 finite numbers (world frame, m), not %r'
+                         % (viewpoint,))
+    return eye
+
+
 class HairRenderer:
     """Tessellate (Oslo), warp into U-shapes (3.2), texture and cull the strips of a style."""
 
@@ -276,8 +293,9 @@ class HairRenderer:
         The mesh is a function of the state, so while the hair sleeps (the state does not
         change) the last one is handed out again: sleeping hair costs no rendering either.
         """
-        key = (sim.state_version, None if viewpoint is None else tuple(
-            float(v) for v in viewpoint))
+        if viewpoint is not None:
+            viewpoint = _eye(viewpoint)
+        key = (sim.state_version, None if viewpoint is None else tuple(viewpoint))
         if self._last_key != key:
             R, p = sim.head_pose
             self._last = self.mesh(sim.pos, R, p, viewpoint)
@@ -299,7 +317,7 @@ class HairRenderer:
             pos,
             (self.strip_strands, self.sigma, self._proof_rest, self._proofs),
             self._head,
-            (_f64(R), _f64(p), _f64(viewpoint)),
+            (_f64(R), _f64(p), _eye(viewpoint)),
             self._scratch,
             self._vis,
         )
@@ -316,7 +334,7 @@ class HairRenderer:
             (self.strip_strands, self.sigma, self._proof_rest, self._proofs),
             (self.lod.along, self.lod.across),
             self._head,
-            (_f64(R), _f64(p), self._no_eye if viewpoint is None else _f64(viewpoint),
+            (_f64(R), _f64(p), self._no_eye if viewpoint is None else _eye(viewpoint),
              viewpoint is not None),
             self._scratch,
             (self._vis, self._grid, self._out, self._flags),

@@ -255,3 +255,21 @@ def test_culled_meshes_have_their_own_triangles_when_the_view_changes(settled, r
         assert np.array_equal(mesh.indices, fresh)
         assert mesh.indices.max() < len(mesh.vertices)
     assert len(seen) >= 3                        # the views really drew different strips
+
+
+@pytest.mark.parametrize('viewpoint', [[float('nan'), 0.0, 0.0], [0.8, float('inf'), 0.0],
+                                       [0.8, 0.0], [0.8, 0.0, 0.0, 1.0], 'front', [[0.8]]])
+def test_a_viewpoint_that_is_no_point_is_refused_by_name(settled, renderer, viewpoint):
+    # (before: a 2-vector was read past its end by the kernels, a NaN one drew every
+    # strip, and neither said a word)
+    R, p = settled.head_pose
+    for call in (lambda: renderer.mesh_of(settled, viewpoint=viewpoint),
+                 lambda: renderer.mesh(settled.pos, R, p, viewpoint),
+                 lambda: renderer.visible(settled.pos, R, p, viewpoint)):
+        with pytest.raises(ValueError, match='viewpoint'):
+            call()
+    # and the renderer goes on culling for a real eye, as a fresh one does
+    eye = [0.8, 0.0, 0.0]
+    fresh = HairRenderer.for_simulator(settled)
+    assert renderer.mesh_of(settled, viewpoint=eye).n_strips == \
+        fresh.mesh_of(settled, viewpoint=eye).n_strips < renderer.n_strips
