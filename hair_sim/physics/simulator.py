@@ -369,7 +369,7 @@ class HairSimulator:
         directions, at rest.
         """
         new = self.params.replaced(**changes)
-        dt = self.stability_dt if step_dt is None else float(step_dt)
+        dt = self.stability_dt if step_dt is None else _step_length(step_dt)
         reason = stability_problem(new, self, dt)
         if reason:
             raise ValueError(reason)
@@ -391,10 +391,11 @@ class HairSimulator:
 
     def plan_step(self, dt):
         """Set the step later parameter changes are checked at; refuse an unstable one."""
+        dt = _step_length(dt)
         reason = stability_problem(self.params, self, dt)
         if reason:
             raise ValueError(reason)
-        self.stability_dt = float(dt)
+        self.stability_dt = dt
 
     def skip_time(self, seconds):
         """
@@ -497,9 +498,7 @@ class HairSimulator:
         head's motion is followed as it was up to there, the pose clock then moves on, and
         time_dropped counts it. Each substep keeps its length, so stability is unchanged.
         """
-        h = float(dt)
-        if not (math.isfinite(h) and 0.0 < h <= MAX_DT):
-            raise ValueError('dt must be in (0, %g] s, not %r' % (MAX_DT, dt))
+        h = _step_length(dt)
         t0 = _time.perf_counter()
         h = self._affordable(h)
         if h < dt:
@@ -991,3 +990,19 @@ def stability_problem(params, sim, dt):
     """
     length = np.asarray(getattr(sim, 'length', sim), dtype=np.float64)
     return SOLVERS[params.model].stability_problem(params, length, dt, STABILITY_MARGIN)
+
+
+def _step_length(dt):
+    """
+    Return dt as a float; raise ValueError unless it is a step, in (0, MAX_DT] s.
+
+    (set_params' step_dt and plan_step took NaN, 0 and -1: every later stability check
+    then passed, as nothing compares true with NaN.)
+    """
+    try:
+        h = float(dt)
+    except (TypeError, ValueError):
+        h = math.nan
+    if not (math.isfinite(h) and 0.0 < h <= MAX_DT):
+        raise ValueError('dt must be in (0, %g] s, not %r' % (MAX_DT, dt))
+    return h
