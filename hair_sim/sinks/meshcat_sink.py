@@ -278,13 +278,22 @@ class MeshcatSink:
         T[:3, :3] = R
         T[:3, 3] = p
         client.send(SetTransform(T, node_path('/hair_sim/head')))
+        # The hair goes in the head's frame, under a node that takes the head's transform.
+        # A page applies a transform at once, but a textured object only once its PNG has
+        # decoded (three.js' ObjectLoader is asynchronous with images), so for a while it
+        # shows this frame's transforms with an earlier frame's hair. In world coordinates
+        # that hair was drawn where the head had been: headless Chromium caught it 5-10 cm
+        # above the scalp in 2 of 5 screenshots of the demo. In the head's frame the roots
+        # stay on the scalp whichever hair is shown; only its shape can be a frame old.
+        client.send(SetTransform(T, node_path('/hair_sim/hair')))
         # the view follows the head: the scene moves so the head's centre stays at the
         # orbit target (its turns and nods still show)
         follow = np.eye(4)
         follow[:3, 3] = -(p + R @ self.head.scalp[:, :3].mean(axis=0))
         client.send(SetTransform(follow, node_path('/hair_sim')))
         if len(mesh.indices):
-            client.send(SetObject(hair_object(mesh), path=node_path('/hair_sim/hair')))
+            client.send(SetObject(hair_object(mesh, head_pose),
+                                  path=node_path('/hair_sim/hair')))
         self.frames_sent += 1
 
     def _run(self):
@@ -337,9 +346,12 @@ class MeshcatSink:
             client.close()
 
 
-def hair_object(mesh):
+def hair_object(mesh, head_pose=None):
     """
     Return the meshcat object of a hair mesh: U-shape geometry with the alpha texture.
+
+    head_pose (R, p): the vertices go in that head frame (the mesh's are world); None
+    leaves them in the world.
 
     The texture's row 0 is the root (v = 0, render/texture.py), as glTF and RViz read a
     PNG; three.js flips textures by default (flipY), which would put the tips' fade at the
@@ -349,7 +361,11 @@ def hair_object(mesh):
     tex = g.ImageTexture(image=g.PngImage(mesh.texture_png), wrap=[1001, 1001], flipY=False)
     mat = g.MeshLambertMaterial(color=0xffffff, map=tex, transparent=True, alphaTest=0.3,
                                 side=2)
-    return g.Mesh(UVMeshGeometry(mesh.vertices, mesh.indices, mesh.uvs), mat)
+    vertices = mesh.vertices
+    if head_pose is not None:
+        R, p = head_pose
+        vertices = ((vertices - p) @ R).astype(np.float32)
+    return g.Mesh(UVMeshGeometry(vertices, mesh.indices, mesh.uvs), mat)
 
 
 CAMERA_DISTANCE = 0.45                  # m from the head's centre
