@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 from scipy.linalg import eigh
+from scipy.optimize import fsolve
 from scipy.spatial.transform import Rotation
 from scipy.special import ellipk
 
@@ -188,6 +189,67 @@ def test_bar_chain_reference_tends_to_euler_bernoulli():
                   - euler) / euler for n in (16, 32, 64, 128)]
     assert all(b < 0.6 * a for a, b in zip(errors, errors[1:])), errors
     assert errors[-1] < 0.02, errors
+
+
+def _wind_statics_tip(n, length, mass, k, k_root, drag, wind):
+    """
+    Return the (x, z) tip of a chain hanging from a clamp at rest in a steady wind (wind, 0, 0).
+
+    Each rod turns phi_i from -z toward +x; it bears its weight and the drag on its normal
+    component of the wind, drag l |w_n| w_n, both at its centre. Joint i's spring
+    k_i (phi_i - phi_(i-1)) balances the moment of every load beyond it (scipy's fsolve).
+    """
+    seg, m = length / n, mass / n
+    stiff = np.full(n, k)
+    stiff[0] = k_root
+
+    def unbalanced(phi):
+        d = np.stack([np.sin(phi), -np.cos(phi)], 1)
+        ends = np.vstack([[0.0, 0.0], np.cumsum(seg * d, 0)])
+        centres = 0.5 * (ends[1:] + ends[:-1])
+        loads = (drag * seg * (wind * np.cos(phi)) ** 2)[:, None] \
+            * np.stack([np.cos(phi), np.sin(phi)], 1)
+        loads[:, 1] -= m * GRAVITY
+        moment = [np.sum((centres[j:, 0] - ends[j, 0]) * loads[j:, 1]
+                         - (centres[j:, 1] - ends[j, 1]) * loads[j:, 0]) for j in range(n)]
+        return stiff * np.diff(np.concatenate([[0.0], phi])) - moment
+
+    phi = fsolve(unbalanced, np.full(n, 0.3), xtol=1e-12)
+    assert np.abs(unbalanced(phi)).max() < 1e-12 * mass * GRAVITY * length
+    return (seg * np.stack([np.sin(phi), -np.cos(phi)], 1)).sum(0)
+
+
+def test_wind_statics_reference_is_the_rod_in_the_wind_in_closed_form():
+    """The reference itself: one free rod rests where m g sin(t) = drag L w^2 cos(t)^2."""
+    length, mass, drag, wind = 0.3, 3e-5, 6e-5, 2.0
+    x, z = _wind_statics_tip(1, length, mass, 0.0, 0.0, drag, wind)
+    c = drag * length * wind ** 2 / (mass * GRAVITY)
+    sin_t = (math.sqrt(1.0 + 4.0 * c * c) - 1.0) / (2.0 * c)     # c sin^2 + sin - c = 0
+    assert abs(x - length * sin_t) < 1e-12
+    assert abs(z + length * math.sqrt(1.0 - sin_t ** 2)) < 1e-12
+
+
+@pytest.mark.parametrize('root_scale', [1e9, 1.0])
+@pytest.mark.parametrize('wind', [1.0, 3.0])
+@pytest.mark.parametrize('n', [2, 4, 10])
+def test_a_chain_in_a_steady_wind_rests_where_its_statics_put_it(head, n, wind, root_scale):
+    """A hanging strand settles in a wind where its drag and weight balance (within 1e-7 m)."""
+    length = 0.3
+    sim = _chain(head, [[0.0, 0.0, -1.0]] * n, length, damping=50.0, air_damping=5.0,
+                 drag_coefficient=1.2, root_stiffness_scale=root_scale)
+    sim.set_wind([wind, 0.0, 0.0], 0.0)
+    for _ in range(int(60.0 / DEFAULT_DT)):
+        sim.step(DEFAULT_DT)
+        if np.abs(sim.vel).max() < 1e-10:
+            break
+    p = sim.params
+    k = p.bending_stiffness / (length / n)
+    drag = 0.5 * p.air_density * p.drag_coefficient * p.drag_width
+    expected = _wind_statics_tip(n, length, float(sim.mass[0].sum()), k,
+                                 k * p.root_stiffness_scale, drag, wind)
+    tip = (sim.pos[0, -1] - sim.pos[0, 0])[[0, 2]]
+    assert expected[0] > 0.02                          # the wind bends it by centimetres
+    assert np.hypot(*(tip - expected)) < 1e-7, (tip, expected)
 
 
 def _energy_series(head, damping, seconds=10.0, shape_stiffness=0.0):
