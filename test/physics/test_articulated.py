@@ -252,6 +252,29 @@ def test_a_chain_in_a_steady_wind_rests_where_its_statics_put_it(head, n, wind, 
     assert np.hypot(*(tip - expected)) < 1e-7, (tip, expected)
 
 
+def test_a_head_moving_through_still_air_is_a_still_head_in_the_wind():
+    """
+    Galilean invariance: a strand on a head gliding at V settles as in a wind -V.
+
+    Through still air, with the same yaw; no joint or air damping (drag alone settles it).
+    """
+    velocity = np.array([-1.5, 1.0, 0.0])
+    yaw = [0.0, 0.0, math.sin(0.25), math.cos(0.25)]
+    still, moving = (_chain(load_head(paths.shipped_head('default_adult')),
+                            [[0.0, 0.0, -1.0]] * 6, 0.3, drag_coefficient=1.2)
+                     for _ in range(2))
+    still.set_wind(-velocity, 0.0)
+    for i in range(int(20.0 / DEFAULT_DT) + 1):
+        t = i * DEFAULT_DT
+        still.set_head_pose(t, [0.0, 0.0, 0.0], yaw)
+        moving.set_head_pose(t, velocity * t, yaw)
+        still.step(DEFAULT_DT)
+        moving.step(DEFAULT_DT)
+    shape = still.pos[0] - still.pos[0, 0]
+    assert np.linalg.norm(shape[-1] - [0.0, 0.0, -0.3]) > 0.1       # the wind bends it
+    assert np.abs(moving.pos[0] - moving.pos[0, 0] - shape).max() < 1e-5
+
+
 def _energy_series(head, damping, seconds=10.0, shape_stiffness=0.0):
     """Return (total energy after each step, the energy of the same strand hanging still)."""
     n = 10
