@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 from scipy.linalg import eigh
-from scipy.optimize import fsolve
+from scipy.optimize import fsolve, minimize
 from scipy.spatial.transform import Rotation
 from scipy.special import ellipk
 
@@ -454,6 +454,66 @@ def test_hanging_scene_drapes_and_stays_outside(dt, segments):
     # mostly hanging: every tip is below its root (they started pointing up and out)
     assert np.all(sim.pos[:, -1, 2] < sim.pos[:, 0, 2])
     assert sim.pos[:, -1, 2].mean() < -0.1
+
+
+def _draped_minimum(n, length, mass, k, k_root, root_height, radius):
+    """
+    Return the vertices (x, z) of the least energy of a chain clamped level on a sphere.
+
+    The chain's springs and weight, its vertices kept outside the frictionless sphere
+    (radius, at the origin); each rod turns phi_i below +x. scipy's trust-constr.
+    """
+    seg, m = length / n, mass / n
+    stiff = np.full(n, k)
+    stiff[0] = k_root
+    scale = m * GRAVITY * seg
+
+    def vertices(phi):
+        d = np.stack([np.cos(phi), -np.sin(phi)], 1)
+        return np.vstack([[0.0, root_height], [0.0, root_height] + np.cumsum(seg * d, 0)])
+
+    def energy(phi):
+        z = vertices(phi)[:, 1]
+        bend = 0.5 * np.sum(stiff * np.diff(np.concatenate([[0.0], phi])) ** 2)
+        return (bend + m * GRAVITY * 0.5 * (z[1:] + z[:-1]).sum()) / scale
+
+    def clearance(phi):                      # mm outside the sphere, vertex by vertex
+        return 1e3 * (np.hypot(*vertices(phi)[1:].T) - radius)
+
+    found = minimize(energy, np.full(n, 0.7), method='trust-constr',
+                     constraints=[{'type': 'ineq', 'fun': clearance}],
+                     options=dict(xtol=1e-14, gtol=1e-14, maxiter=20000))
+    assert clearance(found.x).min() > -1e-6, found.message
+    return vertices(found.x)
+
+
+@pytest.mark.filterwarnings('ignore:delta_grad == 0.0')       # (scipy's quasi-Newton)
+@pytest.mark.parametrize('n', [6, 10, 20])
+def test_a_chain_draped_on_a_frictionless_sphere_rests_at_its_least_energy(n):
+    """
+    Clamped level on top of the hanging scene's head, a strand falls, wraps it and hangs.
+
+    At rest it is where its springs and weight have their least energy with every vertex
+    outside the sphere (scipy, constrained): the contact holds with normal forces only.
+    """
+    length = 0.3
+    rest = hanging.ROOT_OFFSET * np.array([0.0, 0.0, 1.0]) \
+        + np.outer(np.linspace(0.0, length, n + 1), [1.0, 0.0, 0.0])
+    params = dict(hanging.scene_params('articulated'), damping=2.0, sleep_tolerance=0.0)
+    sim = HairSimulator.from_strands(rest[None], hanging.head_model(), **params)
+    sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
+    for _ in range(int(15.0 / DEFAULT_DT)):
+        sim.step(DEFAULT_DT)
+    p = sim.params
+    k = p.bending_stiffness / (length / n)
+    expected = _draped_minimum(n, length, float(sim.mass[0].sum()), k,
+                               k * p.root_stiffness_scale, hanging.ROOT_OFFSET,
+                               hanging.RADIUS)
+    got = sim.pos[0][:, [0, 2]]
+    touching = np.linalg.norm(expected, axis=1) < hanging.RADIUS + 1e-6
+    assert touching.sum() >= n // 4                   # it does wrap the sphere
+    assert np.abs(sim.pos[0, :, 1]).max() == 0.0      # and stays in its plane
+    assert np.linalg.norm(got - expected, axis=1).max() < 1e-4, got - expected
 
 
 def test_hanging_scene_matches_mujoco_at_one_step_per_frame():
