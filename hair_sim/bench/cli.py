@@ -24,6 +24,8 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
     hair_sim_bench viewer   [--json] [--quick]                 a browser page that stops
                                 reading or reads slowly: the meshcat server's memory and
                                 how old the page's hair gets (hair_sim's server, meshcat's)
+    hair_sim_bench jitter   [--json] [--quick]                 a noisy head tracker:
+                                how far the tips stray, against motion_smoothing's cost
 """
 
 import argparse
@@ -62,7 +64,7 @@ def main(argv=None):
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress', 'settle',
                                             'node', 'budget', 'hanging', 'style',
-                                            'fall', 'viewer'])
+                                            'fall', 'viewer', 'jitter'])
     parser.add_argument('--json', action='store_true', help='print JSON on stdout')
     parser.add_argument('--quick', action='store_true', help='a short run (under a minute)')
     parser.add_argument('--plots', default='bench_out', help='directory for PNG plots')
@@ -129,6 +131,9 @@ def main(argv=None):
     elif args.command == 'viewer':
         from hair_sim.bench import viewer
         emit(viewer.run(args.quick), args.json, 'viewer')
+    elif args.command == 'jitter':
+        from hair_sim.bench import jitter
+        emit(jitter.run(args.quick), args.json, 'jitter')
     elif args.command == 'skip':
         from hair_sim.bench import skip
         emit(skip.run(args.quick), args.json, 'skip')

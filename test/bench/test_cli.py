@@ -83,6 +83,30 @@ def test_style_quick(tmp_path):
     assert exact['tilt_hang_m'] > 0.1, exact            # (its strands are 0.28-0.29 m long)
 
 
+def test_jitter_quick(tmp_path):
+    """
+    A record per model and smoothing; what the README says of a noisy tracker holds.
+
+    The glued floor is the tracker's own scatter at the tips (the same poses for every
+    run). The thesis model takes the head's acceleration, so at the default smoothing its
+    tips stray well beyond the floor and a long smoothing brings them back to it, at the
+    cost of its trail on a clean turn; the exact chain's tips stay near the floor either way.
+    """
+    rc, rows = bench('jitter', tmp_path)
+    assert rc == 0
+    assert [(r['model'], r['motion_smoothing_s']) for r in rows] == [
+        ('anjyo', 0.02), ('anjyo', 0.2), ('articulated', 0.02), ('articulated', 0.2)]
+    floor = rows[0]['glued_world_mm_mean']
+    assert floor > 1.0 and all(abs(r['glued_world_mm_mean'] - floor) < 0.05 * floor for r in rows)
+    quick, smooth, chain, chain_smooth = rows
+    assert quick['world_mm_mean'] > 2.0 * floor, quick
+    assert smooth['world_mm_mean'] < 1.2 * floor, smooth
+    assert smooth['turn_trail_mm'] < quick['turn_trail_mm'], rows
+    for r in (chain, chain_smooth):
+        assert 0.5 * floor < r['world_mm_mean'] < 1.5 * floor, r
+        assert r['on_head_mm_mean'] < quick['on_head_mm_mean'] / 2.0, rows
+
+
 @pytest.mark.parametrize('args, why', [
     (['stress', '--shape-stiffness', '0.03'], 'with --model articulated'),
     (['settle', '--shape-stiffness', '0.03'], 'with --model articulated'),
