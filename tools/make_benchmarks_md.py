@@ -19,6 +19,7 @@ Write BENCHMARKS.md from the JSON and plots of a full benchmark run in doc/bench
 """
 
 import json
+import math
 import os
 import sys
 
@@ -697,34 +698,44 @@ def settle_section(by_model):
 
 
 def jitter_section(rows):
-    """Return the section on a noisy head tracker: the tips' stray and smoothing's cost."""
+    """Return the section on a noisy head tracker: the tips' stray, smoothing, deadbands."""
     r0 = rows[0]
     parts = ['## A noisy head tracker (`hair_sim_bench jitter --json`)', '',
              'A tracker\'s poses of a still head scatter by its noise: Gaussian, sigma mm in '
              'position and sigma / 5 degrees about each axis, at %.0f Hz for 10 s (the first '
              '2 s not counted), %s settled upright, each model at the default step, with the '
-             'head\'s velocity low-passed over `physics.motion_smoothing` s (default 0.02). '
+             'head\'s velocity low-passed over `physics.motion_smoothing` s (default 0.02), '
+             'and without or with the deadbands that hold the noise out '
+             '(`physics.head_deadband`, `head_turn_deadband`; here 5 sigma). '
              '*On the head*: how far the tips stray from their rest relative to the head '
              '(the hair moving on a head drawn under the same poses). *World*: from their '
              'rest in the world; *glued*: the same for tips carried rigidly by each pose '
-             '(the tracker\'s own noise at the tips). *Turn trail*: how far the tips trail '
-             'a clean 90 degree yaw in 0.3 s at its end, what the smoothing costs in motion.'
-             % (r0['tracker_hz'], r0['style']), '',
-             '| model | noise | motion_smoothing | on the head: mean, p95 | world: mean, p95 '
-             '| glued: mean, p95 | turn trail | asleep at the end |',
-             '| --- | --- | --- | --- | --- | --- | --- | --- |']
+             '(the tracker\'s own noise at the tips). *Asleep*: the share of the steps the '
+             'hair slept; *CPU*: seconds a simulated second took, in-process. *Turn trail*: '
+             'how far the tips trail a clean 90 degree yaw in 0.3 s at its end, and *short*: '
+             'how far short of the tracker the head then rests; what smoothing and '
+             'deadbands cost in motion.' % (r0['tracker_hz'], r0['style']), '',
+             '| model | noise | motion_smoothing | deadbands | on the head: mean, p95 '
+             '| world: mean, p95 | glued: mean, p95 | asleep | CPU | turn trail | short |',
+             '| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |']
     for r in rows:
-        parts.append('| %s | %.1f mm, %.1f deg | %.2f s | %.2f, %.2f mm | %.2f, %.2f mm '
-                     '| %.2f, %.2f mm | %.1f mm | %s |' % (
+        bands = ('%.1f mm, %.1f deg' % (1e3 * r['head_deadband_m'],
+                                        math.degrees(r['head_turn_deadband_rad']))
+                 if r['head_deadband_m'] > 0 else 'off')
+        parts.append('| %s | %.1f mm, %.1f deg | %.2f s | %s | %.2f, %.2f mm | %.2f, %.2f mm '
+                     '| %.2f, %.2f mm | %.0f %% | %.3f s/s | %.1f mm | %.1f deg |' % (
                          r['model'], r['noise_mm'], r['noise_deg'], r['motion_smoothing_s'],
-                         r['on_head_mm_mean'], r['on_head_mm_p95'], r['world_mm_mean'],
+                         bands, r['on_head_mm_mean'], r['on_head_mm_p95'], r['world_mm_mean'],
                          r['world_mm_p95'], r['glued_world_mm_mean'], r['glued_world_mm_p95'],
-                         r['turn_trail_mm'], 'yes' if r['asleep_at_end'] else 'no'))
-    default = {r['model']: r for r in rows
-               if r['motion_smoothing_s'] == 0.02 and r['noise_mm'] == rows[-1]['noise_mm']}
-    smooth = {r['model']: r for r in rows
-              if r['motion_smoothing_s'] == 0.1 and r['noise_mm'] == rows[-1]['noise_mm']}
-    a, a1 = default['anjyo'], smooth['anjyo']
+                         100 * r['asleep_share'], r['cpu_s_per_s'], r['turn_trail_mm'],
+                         r['turn_short_deg']))
+
+    def row(model, smoothing, held):
+        return [r for r in rows if r['model'] == model and r['motion_smoothing_s'] == smoothing
+                and (r['head_deadband_m'] > 0) == held
+                and r['noise_mm'] == rows[-1]['noise_mm']][0]
+    a, a1, ah = row('anjyo', 0.02, False), row('anjyo', 0.1, False), row('anjyo', 0.02, True)
+    c, ch = row('articulated', 0.02, False), row('articulated', 0.02, True)
     parts += ['', '**Reading.** The thesis model swings each segment under the head\'s '
               'acceleration (eq. 5), and a tracker\'s noise, differentiated twice, is all '
               'acceleration: at the default smoothing its tips stray %.1f times as far as '
@@ -732,12 +743,17 @@ def jitter_section(rows):
               '`motion_smoothing` 0.1 s brings them to the glued scatter (%.1f mm) and '
               'takes its trail on a real turn from %.1f to %.1f mm. The articulated model '
               'takes the head\'s pose as its roots\' and its own dynamics filter the rest: '
-              'its tips stray about as far as glued hair\'s at any smoothing. In either '
-              'model the noise keeps the hair awake: a still head seen by a noisy tracker '
-              'never lets it sleep.'
+              'its tips stray about as far as glued hair\'s at any smoothing. Without '
+              'deadbands the noise keeps the hair of either model awake. With them the head '
+              'stays put while the noise is inside them, so the hair sleeps through it, does '
+              'not stray at all, and costs %.3f and %.3f s/s instead of %.3f and %.3f '
+              '(thesis, articulated); a real turn moves it as before (%.1f and %.1f mm), and '
+              'the head then rests the turn deadband short of the tracker.'
               % (a['world_mm_mean'] / a['glued_world_mm_mean'], a['world_mm_mean'],
                  a['glued_world_mm_mean'], a['noise_mm'], a1['world_mm_mean'],
-                 a['turn_trail_mm'], a1['turn_trail_mm']), '']
+                 a['turn_trail_mm'], a1['turn_trail_mm'], ah['cpu_s_per_s'], ch['cpu_s_per_s'],
+                 a['cpu_s_per_s'], c['cpu_s_per_s'], ah['turn_trail_mm'], ch['turn_trail_mm']),
+              '']
     return parts
 
 

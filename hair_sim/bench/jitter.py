@@ -5,13 +5,20 @@ A tracker's poses of a still head scatter by its noise: here Gaussian, sigma mm 
 and sigma / 5 degrees about each axis (so 0.5 mm goes with 0.1 degrees, 2 mm with 0.4),
 at 120 Hz, over 10 s (the first 2 s not counted). thesis_long, settled upright, under each
 strand model at the default step, with the head's velocity low-passed over
-`physics.motion_smoothing` seconds. Per run: how far the tips stray from where they rest
+`physics.motion_smoothing` seconds, and without or with the deadbands that hold a
+tracker's noise out (`physics.head_deadband` and `head_turn_deadband`, here 5 sigma: 5
+sigma mm and sigma degrees). Per run: how far the tips stray from where they rest
 relative to the head (head frame: the hair moving on the head, which the head drawn under
 the same noisy pose makes visible), and in the world (mean and 95th percentile), against
 the world scatter of hair glued to the head (its rest tips carried by each noisy pose: the
-tracker's own noise at the tips); and what the smoothing costs on a real motion: how far
-the tips trail a 90 degree yaw in 0.3 s at its end (mean), with a clean tracker.
+tracker's own noise at the tips); the share of the steps the hair slept, and the CPU
+seconds a simulated second took; and what the smoothing and the deadbands cost on a real
+motion: how far the tips trail a 90 degree yaw in 0.3 s at its end (mean), with a clean
+tracker, and how far short of the tracker's last pose the head then rests (degrees).
 """
+
+import math
+import time
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -32,9 +39,15 @@ UNCOUNTED = 2.0                   # s at the start, while the noise first stirs 
 SETTLE_S = 10.0
 
 
-def settled(style, model, smoothing):
+def deadbands(sigma_mm):
+    """Return the (head_deadband m, head_turn_deadband rad) for a tracker's noise: 5 sigma."""
+    return 5e-3 * sigma_mm, math.radians(sigma_mm)
+
+
+def settled(style, model, smoothing, held=(0.0, 0.0)):
     """Return the simulator of the style at rest with the head upright at the origin, and t."""
-    sim = HairSimulator(style, model=model, motion_smoothing=smoothing)
+    sim = HairSimulator(style, model=model, motion_smoothing=smoothing,
+                        head_deadband=held[0], head_turn_deadband=held[1])
     t = 0.0
     sim.set_head_pose(t, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0])
     while not sim.sleeping and t < SETTLE_S:
@@ -57,7 +70,8 @@ def scatter(sim, t, sigma_mm):
     Feed the noisy poses from t on; return the tips' stray (head frame, world) and glued's.
 
     Each is (mean, 95th percentile), mm, over the counted poses, of the tips' distance from
-    the rest tips.
+    the rest tips. Then the share of the steps asleep and the CPU seconds the poses and steps
+    took per simulated second.
     """
     rest = sim.strand_positions()[:, -1].copy()
     rest_on_head = sim.positions_in_head_frame()[:, -1].copy()
@@ -65,11 +79,16 @@ def scatter(sim, t, sigma_mm):
     period = 1.0 / TRACKER_HZ
     steps = max(1, int(round(period / DEFAULT_DT)))
     on_head, stray, glued = [], [], []
+    asleep = 0
+    cpu = 0.0
     for k in range(len(positions)):
         t += period
+        start = time.process_time()
         sim.set_head_pose(t, positions[k], quats[k])
         for _ in range(steps):
             sim.step(period / steps)
+            asleep += sim.sleeping
+        cpu += time.process_time() - start
         if k * period < UNCOUNTED:
             continue
         on_head.append(np.linalg.norm(sim.positions_in_head_frame()[:, -1] - rest_on_head,
@@ -77,35 +96,48 @@ def scatter(sim, t, sigma_mm):
         stray.append(np.linalg.norm(sim.strand_positions()[:, -1] - rest, axis=1))
         carried = rest @ quat_to_matrix(quats[k]).T + positions[k]
         glued.append(np.linalg.norm(carried - rest, axis=1))
+    cpu /= SECONDS
     return tuple((float(d.mean()), float(np.percentile(d, 95)))
-                 for d in (1e3 * np.concatenate(x) for x in (on_head, stray, glued)))
+                 for d in (1e3 * np.concatenate(x) for x in (on_head, stray, glued))) + (
+        asleep / (steps * len(positions)), cpu)
 
 
-def turn_trail(style, model, smoothing):
-    """Return how far (mm, mean) the tips trail a 90 degree yaw in 0.3 s, at its end."""
-    sim, t = settled(style, model, smoothing)
+def turn_trail(style, model, smoothing, held):
+    """
+    Return how far the tips trail a 90 degree yaw in 0.3 s, and how far short the head ends.
+
+    The trail is the tips' mean distance (mm) from their rest on the head at the turn's
+    end; the head's shortfall is in degrees, once it has stopped.
+    """
+    sim, t = settled(style, model, smoothing, held)
     tips = sim.positions_in_head_frame()[:, -1].copy()
     drive(sim, quarter_turn(t), t, 0.3, DEFAULT_DT)
-    return 1e3 * float(np.linalg.norm(sim.positions_in_head_frame()[:, -1] - tips,
-                                      axis=1).mean())
+    trail = 1e3 * float(np.linalg.norm(sim.positions_in_head_frame()[:, -1] - tips,
+                                       axis=1).mean())
+    R, _ = sim.head_pose
+    return trail, 90.0 - math.degrees(math.atan2(R[1, 0], R[0, 0]))
 
 
 def run(quick=False):
-    """Return one record per (model, noise, smoothing)."""
+    """Return one record per (model, noise, smoothing, deadbands off or on)."""
     style = load_hairstyle(paths.shipped_style(STYLE))
     noises = NOISE_MM[-1:] if quick else NOISE_MM
     smoothings = SMOOTHING[::3] if quick else SMOOTHING
-    cases = [(m, n, s) for m in MODELS for n in noises for s in smoothings]
+    cases = [(m, n, s, False) for m in MODELS for n in noises for s in smoothings] + \
+        [(m, n, SMOOTHING[0], True) for m in MODELS for n in noises]
     records = []
-    for model, sigma, smoothing in progress(cases, 'jitter'):
-        sim, t = settled(style, model, smoothing)
-        on_head, world, glued = scatter(sim, t, sigma)
+    for model, sigma, smoothing, holding in progress(cases, 'jitter'):
+        held = deadbands(sigma) if holding else (0.0, 0.0)
+        sim, t = settled(style, model, smoothing, held)
+        on_head, world, glued, asleep, cpu = scatter(sim, t, sigma)
+        trail, short = turn_trail(style, model, smoothing, held)
         records.append(dict(style=STYLE, model=model, noise_mm=sigma,
                             noise_deg=sigma / 5.0, tracker_hz=TRACKER_HZ,
-                            motion_smoothing_s=smoothing,
+                            motion_smoothing_s=smoothing, head_deadband_m=held[0],
+                            head_turn_deadband_rad=held[1],
                             on_head_mm_mean=on_head[0], on_head_mm_p95=on_head[1],
                             world_mm_mean=world[0], world_mm_p95=world[1],
                             glued_world_mm_mean=glued[0], glued_world_mm_p95=glued[1],
-                            turn_trail_mm=turn_trail(style, model, smoothing),
-                            asleep_at_end=bool(sim.sleeping)))
+                            asleep_share=asleep, cpu_s_per_s=cpu, turn_trail_mm=trail,
+                            turn_short_deg=short))
     return records

@@ -11,6 +11,9 @@ repeat, come out of order, jump in time or teleport; each case is sorted here:
 - a jump both large (over `TELEPORT_DISTANCE` / `TELEPORT_ANGLE`) and faster than the
   limits is a teleport: the hair is carried rigidly with the head, no inertial kick;
 - jitter is smoothed by low-passing the velocity and clamping the acceleration;
+- with `head_deadband` and `head_turn_deadband`, a tracker's noise is held out: a pose
+  within them of the head leaves it where it is (counted: `held`), one beyond moves it
+  only by the excess;
 - the very first pose places the head (like a teleport): nothing is known before it.
 """
 
@@ -108,6 +111,28 @@ def filter_head_motion(new_pose,
     return out, moved
 
 
+def backlash(position, quaternion, new_position, new_quaternion, deadband, turn_deadband):
+    """
+    Return the head's pose (position, quaternion) after a pose that may be a tracker's noise.
+
+    The head stays where it is while the new pose is within `deadband` (m) of it and turned
+    less than `turn_deadband` (rad) from it; beyond, it moves towards the new pose by the
+    excess only (a backlash: it trails a real motion by the deadband, and follows it
+    without a jump). The third value is 1 if the pose was held out entirely, else 0.
+    """
+    offset = new_position - position
+    distance = math.sqrt(float(offset @ offset))
+    held = 1
+    if distance > deadband:
+        position = position + offset * (1.0 - deadband / distance)
+        held = 0
+    angle = 2.0 * math.acos(min(1.0, abs(float(quaternion @ new_quaternion))))
+    if angle > turn_deadband:
+        quaternion = slerp(quaternion, new_quaternion, 1.0 - turn_deadband / angle)
+        held = 0
+    return position, quaternion, held
+
+
 def slerp(q0, q1, f):
     """Spherical interpolation between unit quaternions (x, y, z, w)."""
     d = float(np.dot(q0, q1))
@@ -129,7 +154,7 @@ class HeadMotion:
         self.offset = None                         # stamp - simulator time
         self.anchors = 0                           # times the offset was (re)set from a pose
         self.counts = {'accepted': 0, 'invalid': 0, 'repeated': 0, 'out_of_order': 0,
-                       'clock_jump': 0, 'teleport': 0, 'normalised': 0}
+                       'clock_jump': 0, 'teleport': 0, 'normalised': 0, 'held': 0}
         self.teleported = False
 
     def reset(self):
@@ -206,6 +231,11 @@ class HeadMotion:
                 self.samples.clear()
                 self.teleported = True
                 verdict = 'teleport'
+        if self.samples and (self.params.head_deadband > 0.0
+                             or self.params.head_turn_deadband > 0.0):
+            p, q, held = backlash(self.samples[-1][2], self.samples[-1][3], p, q,
+                                  self.params.head_deadband, self.params.head_turn_deadband)
+            self.counts['held'] += held
         self.samples.append((t, stamp, p, q))
         self.counts['accepted'] += 1
         return verdict

@@ -39,6 +39,8 @@ RANGES = {
     'max_head_angular_speed': (0.1, 1000.0),
     'max_head_acceleration': (1.0, 10000.0),
     'motion_smoothing': (0.0, 1.0),
+    'head_deadband': (0.0, 0.05),
+    'head_turn_deadband': (0.0, 0.2),
     'clock_jump_back': (0.001, 86400.0),
     'root_stiffness_scale': (0.0, 1e9),
     'shape_stiffness': (0.0, 1.0),     # 0.1 already holds the style within 2 cm in gusts
@@ -96,6 +98,11 @@ DESCRIPTIONS = {
                               'the hair is carried with it (rad/s)' % TELEPORT_ANGLE,
     'max_head_acceleration': 'head accelerations are clamped to this (m/s^2)',
     'motion_smoothing': 'low-pass time constant of the head\'s velocity (s)',
+    'head_deadband': 'a tracker\'s noise: the head stays put until a pose is this far from '
+                     'it, then trails the pose by this much (m); 0: off',
+    'head_turn_deadband': 'the same for the head\'s turn: a pose turned less than this from '
+                          'the head leaves it as it is, then it trails by this much (rad); '
+                          '0: off',
     'clock_jump_back': 'a pose stamped this much before the last one re-anchors the clock; a '
                        'smaller step back is dropped (s)',
     'sleep_tolerance': 'sleep when no vertex moves more than this for sleep_delay (m)',
@@ -179,6 +186,11 @@ class PhysicsParams:
     max_head_angular_speed: float = 40.0  # rad/s
     max_head_acceleration: float = 300.0  # m/s^2 (about 30 g)
     motion_smoothing: float = 0.02      # s, low-pass time constant of head velocity
+    # A tracker's noise, held out (0: off): a pose within head_deadband (m) of the head and
+    # turned less than head_turn_deadband (rad) from it leaves it where it is; one beyond
+    # moves it by the excess only (a backlash), so the head trails a real motion by these.
+    head_deadband: float = 0.0
+    head_turn_deadband: float = 0.0
     # A pose stamped more than this (s) before the last one re-anchors the clock (a looping
     # bag, a restarted tracker); a smaller step back is an out-of-order pose and dropped.
     clock_jump_back: float = 0.5

@@ -1,6 +1,7 @@
 """hair_sim_bench --quick: every command runs and prints JSON of the documented shape."""
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -85,26 +86,35 @@ def test_style_quick(tmp_path):
 
 def test_jitter_quick(tmp_path):
     """
-    A record per model and smoothing; what the README says of a noisy tracker holds.
+    A record per model, smoothing and deadbands; what the README says of a noisy tracker.
 
     The glued floor is the tracker's own scatter at the tips (the same poses for every
     run). The thesis model takes the head's acceleration, so at the default smoothing its
     tips stray well beyond the floor and a long smoothing brings them back to it, at the
-    cost of its trail on a clean turn; the exact chain's tips stay near the floor either way.
+    cost of its trail on a clean turn; the exact chain's tips stay near the floor either
+    way. With the deadbands the hair of either model sleeps through the noise and does not
+    stray, trails a clean turn as without them, and the head ends a turn deadband short.
     """
     rc, rows = bench('jitter', tmp_path)
     assert rc == 0
-    assert [(r['model'], r['motion_smoothing_s']) for r in rows] == [
-        ('anjyo', 0.02), ('anjyo', 0.2), ('articulated', 0.02), ('articulated', 0.2)]
+    assert [(r['model'], r['motion_smoothing_s'], r['head_deadband_m'] > 0) for r in rows] == [
+        ('anjyo', 0.02, False), ('anjyo', 0.2, False), ('articulated', 0.02, False),
+        ('articulated', 0.2, False), ('anjyo', 0.02, True), ('articulated', 0.02, True)]
     floor = rows[0]['glued_world_mm_mean']
     assert floor > 1.0 and all(abs(r['glued_world_mm_mean'] - floor) < 0.05 * floor for r in rows)
-    quick, smooth, chain, chain_smooth = rows
+    quick, smooth, chain, chain_smooth, held, chain_held = rows
     assert quick['world_mm_mean'] > 2.0 * floor, quick
     assert smooth['world_mm_mean'] < 1.2 * floor, smooth
     assert smooth['turn_trail_mm'] < quick['turn_trail_mm'], rows
     for r in (chain, chain_smooth):
         assert 0.5 * floor < r['world_mm_mean'] < 1.5 * floor, r
         assert r['on_head_mm_mean'] < quick['on_head_mm_mean'] / 2.0, rows
+    for r in rows[:4]:
+        assert r['asleep_share'] == 0.0 and r['turn_short_deg'] < 1e-6, r
+    for r, free in ((held, quick), (chain_held, chain)):
+        assert r['asleep_share'] > 0.99 and r['world_mm_mean'] == 0.0, r
+        assert abs(r['turn_trail_mm'] - free['turn_trail_mm']) < 0.05 * free['turn_trail_mm']
+        assert abs(r['turn_short_deg'] - math.degrees(r['head_turn_deadband_rad'])) < 1e-3, r
 
 
 @pytest.mark.parametrize('args, why', [

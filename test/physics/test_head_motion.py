@@ -3,9 +3,12 @@
 import math
 
 import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
 
 from hair_sim import DEFAULT_DT, HairSimulator
-from hair_sim.bench.scenarios import quat_from_euler
+from hair_sim.bench.scenarios import drive, quarter_turn, quat_from_euler
+from hair_sim.physics.motion import backlash
 
 ID = [0.0, 0.0, 0.0, 1.0]
 
@@ -173,3 +176,85 @@ def test_head_filter_reaches_a_steady_turn_and_clamps_its_acceleration():
     kin, moved = filter_head_motion((p, R), (p, R, np.zeros(3), np.zeros(3)), beta, h,
                                     (5.0, 7.0))
     assert not moved and not kin.any()
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_backlash_holds_a_pose_inside_its_deadbands_and_moves_by_the_excess_beyond(seed):
+    """Inside both deadbands the head stays; beyond, it ends exactly a deadband short."""
+    rng = np.random.default_rng(seed)
+    p0 = rng.normal(0.0, 0.1, 3)
+    q0 = Rotation.random(random_state=seed).as_quat()
+    band, turn_band = 0.01, 0.05
+    near = p0 + 0.9 * band * _unit(rng.normal(size=3))
+    slight = (Rotation.from_rotvec(0.9 * turn_band * _unit(rng.normal(size=3)))
+              * Rotation.from_quat(q0)).as_quat()
+    p, q, held = backlash(p0, q0, near, slight, band, turn_band)
+    assert held == 1 and np.array_equal(p, p0) and np.array_equal(q, q0)
+    far = p0 + rng.uniform(2.0, 20.0) * band * _unit(rng.normal(size=3))
+    turned = (Rotation.from_rotvec(rng.uniform(1.5, 3.0) * _unit(rng.normal(size=3)))
+              * Rotation.from_quat(q0)).as_quat()
+    p, q, held = backlash(p0, q0, far, turned, band, turn_band)
+    assert held == 0
+    assert abs(np.linalg.norm(far - p) - band) < 1e-12
+    assert abs(np.linalg.norm(np.cross(far - p0, p - p0))) < 1e-12       # straight at it
+    short = (Rotation.from_quat(turned) * Rotation.from_quat(q).inv()).magnitude()
+    assert abs(short - turn_band) < 1e-9
+    moved = (Rotation.from_quat(q) * Rotation.from_quat(q0).inv()).magnitude()
+    whole = (Rotation.from_quat(turned) * Rotation.from_quat(q0).inv()).magnitude()
+    assert abs(moved + short - whole) < 1e-9                             # along the turn
+
+
+def _unit(v):
+    return v / np.linalg.norm(v)
+
+
+def _settled(style, model, band, turn_band):
+    sim = HairSimulator(style, model=model, head_deadband=band, head_turn_deadband=turn_band)
+    t = 0.0
+    sim.set_head_pose(t, [0.0, 0.0, 0.0], ID)
+    while not sim.sleeping:
+        t += DEFAULT_DT
+        sim.set_head_pose(t, [0.0, 0.0, 0.0], ID)
+        sim.step(DEFAULT_DT)
+    return sim, t
+
+
+@pytest.mark.parametrize('model', ['anjyo', 'articulated'])
+def test_deadbands_let_hair_under_a_noisy_tracker_sleep(long_style, model):
+    """
+    Under a noisy tracker the hair sleeps with deadbands, and still follows a real turn.
+
+    A still head seen by the tracker (2 mm, 0.4 degrees, 120 Hz): without deadbands the
+    hair never sleeps; with them (5 sigma) it sleeps and stays put. A real turn moves it
+    as it does without them, and the head then rests a turn deadband short of the pose.
+    """
+    rng = np.random.default_rng(1)
+    noise = [(rng.normal(0.0, 2e-3, 3),
+              Rotation.from_rotvec(rng.normal(0.0, math.radians(0.4), 3)).as_quat())
+             for _ in range(600)]
+    trails = []
+    for band, turn_band in ((0.0, 0.0), (0.01, math.radians(2.0))):
+        sim, t = _settled(long_style, model, band, turn_band)
+        rest = sim.strand_positions()
+        asleep = 0
+        for p, q in noise:
+            t += 1.0 / 120.0
+            sim.set_head_pose(t, p, q)
+            sim.step(1.0 / 240.0)
+            sim.step(1.0 / 240.0)
+            asleep += sim.sleeping
+        if band == 0.0:
+            assert asleep == 0
+        else:
+            assert asleep == len(noise) and sim.motion.counts['held'] >= len(noise)
+            assert np.array_equal(sim.strand_positions(), rest)
+            assert np.array_equal(sim.head_pose[0], np.eye(3))
+        sim, t = _settled(long_style, model, band, turn_band)       # a clean tracker
+        tips = sim.positions_in_head_frame()[:, -1]
+        t_end = drive(sim, quarter_turn(t), t, 0.3, DEFAULT_DT)
+        trails.append(np.linalg.norm(sim.positions_in_head_frame()[:, -1] - tips, axis=1))
+        drive(sim, quarter_turn(t), t_end, 1.0, DEFAULT_DT)
+        yaw = math.atan2(sim.head_pose[0][1, 0], sim.head_pose[0][0, 0])
+        assert abs(yaw - (math.pi / 2 - turn_band)) < 1e-6, (yaw, turn_band)
+    assert trails[0].mean() > 0.01                                  # the turn moved it
+    assert abs(trails[1].mean() - trails[0].mean()) < 0.05 * trails[0].mean(), trails
