@@ -25,7 +25,8 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
                                 reading or reads slowly: the meshcat server's memory and
                                 how old the page's hair gets (hair_sim's server, meshcat's)
     hair_sim_bench jitter   [--json] [--quick]                 a noisy head tracker:
-                                how far the tips stray, against motion_smoothing's cost
+                                how far the tips stray, with motion_smoothing and the
+                                deadbands, and what they cost on a real turn
 """
 
 import argparse
