@@ -24,10 +24,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hair_sim import load_hairstyle, paths
+from hair_sim.bench import style_keeping
 from hair_sim.bench.common import progress
 from hair_sim.bench.scenarios import drive, quarter_turn
 from hair_sim.physics.motion import quat_to_matrix
-from hair_sim.physics.simulator import DEFAULT_DT, HairSimulator
+from hair_sim.physics.simulator import DEFAULT_DT
 
 STYLE = 'thesis_long'
 MODELS = ('anjyo', 'articulated')
@@ -36,7 +37,6 @@ SMOOTHING = (0.02, 0.05, 0.1, 0.2)   # s; 0.02 is PhysicsParams' default
 TRACKER_HZ = 120.0
 SECONDS = 10.0
 UNCOUNTED = 2.0                   # s at the start, while the noise first stirs the hair
-SETTLE_S = 10.0
 
 
 def deadbands(sigma_mm):
@@ -46,15 +46,9 @@ def deadbands(sigma_mm):
 
 def settled(style, model, smoothing, held=(0.0, 0.0)):
     """Return the simulator of the style at rest with the head upright at the origin, and t."""
-    sim = HairSimulator(style, model=model, motion_smoothing=smoothing,
-                        head_deadband=held[0], head_turn_deadband=held[1])
-    t = 0.0
-    sim.set_head_pose(t, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0])
-    while not sim.sleeping and t < SETTLE_S:
-        t += DEFAULT_DT
-        sim.set_head_pose(t, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0])
-        sim.step(DEFAULT_DT)
-    return sim, t
+    return style_keeping.settled(style, model, DEFAULT_DT, 0.0, style_keeping.UPRIGHT,
+                                 motion_smoothing=smoothing, head_deadband=held[0],
+                                 head_turn_deadband=held[1])
 
 
 def noisy_poses(sigma_mm, n, seed=0):

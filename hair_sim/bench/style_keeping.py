@@ -31,9 +31,13 @@ UPRIGHT = ([0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0])
 TILTED = ([0.0, 0.0, 0.0], quat_from_euler(0.5 * np.pi, 0.0, 0.0))   # ear to shoulder
 
 
-def settled(style, model, dt, shape_stiffness, pose):
-    """Return the simulator of the style at rest under a still pose (at most SETTLE_S), and t."""
-    sim = HairSimulator(style, model=model, shape_stiffness=shape_stiffness)
+def settled(style, model, dt, shape_stiffness, pose, **params):
+    """
+    Return the simulator of the style at rest under a still pose (at most SETTLE_S), and t.
+
+    params are further PhysicsParams of the simulator.
+    """
+    sim = HairSimulator(style, model=model, shape_stiffness=shape_stiffness, **params)
     t = 0.0
     sim.set_head_pose(t, *pose)
     while not sim.sleeping and t < SETTLE_S:

@@ -9,6 +9,7 @@ from scipy.spatial.transform import Rotation
 from hair_sim import DEFAULT_DT, HairSimulator
 from hair_sim.bench.scenarios import drive, quarter_turn, quat_from_euler
 from hair_sim.physics.motion import backlash
+from helpers.styles import settled
 
 ID = [0.0, 0.0, 0.0, 1.0]
 
@@ -208,17 +209,6 @@ def _unit(v):
     return v / np.linalg.norm(v)
 
 
-def _settled(style, model, band, turn_band):
-    sim = HairSimulator(style, model=model, head_deadband=band, head_turn_deadband=turn_band)
-    t = 0.0
-    sim.set_head_pose(t, [0.0, 0.0, 0.0], ID)
-    while not sim.sleeping:
-        t += DEFAULT_DT
-        sim.set_head_pose(t, [0.0, 0.0, 0.0], ID)
-        sim.step(DEFAULT_DT)
-    return sim, t
-
-
 @pytest.mark.parametrize('model', ['anjyo', 'articulated'])
 def test_deadbands_let_hair_under_a_noisy_tracker_sleep(long_style, model):
     """
@@ -234,7 +224,8 @@ def test_deadbands_let_hair_under_a_noisy_tracker_sleep(long_style, model):
              for _ in range(600)]
     trails = []
     for band, turn_band in ((0.0, 0.0), (0.01, math.radians(2.0))):
-        sim, t = _settled(long_style, model, band, turn_band)
+        sim = settled(long_style, model=model, head_deadband=band, head_turn_deadband=turn_band)
+        t = sim.time
         rest = sim.strand_positions()
         asleep, held = 0, sim.motion.counts['held']
         for p, q in noise:
@@ -249,7 +240,9 @@ def test_deadbands_let_hair_under_a_noisy_tracker_sleep(long_style, model):
             assert asleep == len(noise) and sim.motion.counts['held'] - held == len(noise)
             assert np.array_equal(sim.strand_positions(), rest)
             assert np.array_equal(sim.head_pose[0], np.eye(3))
-        sim, t = _settled(long_style, model, band, turn_band)       # a clean tracker
+        sim = settled(long_style, model=model, head_deadband=band,   # a clean tracker
+                      head_turn_deadband=turn_band)
+        t = sim.time
         tips = sim.positions_in_head_frame()[:, -1]
         t_end = drive(sim, quarter_turn(t), t, 0.3, DEFAULT_DT)
         trails.append(np.linalg.norm(sim.positions_in_head_frame()[:, -1] - tips, axis=1))
