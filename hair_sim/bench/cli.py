@@ -15,12 +15,15 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
     hair_sim_bench budget   [--json] [--quick]                 per-vertex costs behind
                                 the frame budget (hair_sim/budget.py)
     hair_sim_bench hanging  [--json] [--quick] [--plots DIR]   the hanging-hair scene:
-                                both models against MuJoCo (make bench-deps)
+                                both models against MuJoCo (make setup installs it)
+    hair_sim_bench materials [--json] [--quick]                the same scene with other
+                                strands (stiffer, limper, shorter, longer, little air
+                                damping) and MuJoCo's contacts stiffer
     hair_sim_bench style    [--json] [--quick]                 every shipped style in the
                                 demo's gusts: how far from its look, and back after?
     hair_sim_bench fall     [--json] [--quick] [--plots DIR]   the strands the stress
                                 gale leaves moving (articulated), run on in MuJoCo from the
-                                same state (make bench-deps)
+                                same state (make setup installs it)
     hair_sim_bench viewer   [--json] [--quick]                 a browser page that stops
                                 reading or reads slowly: the meshcat server's memory and
                                 how old the page's hair gets (hair_sim's server, meshcat's)
@@ -65,7 +68,7 @@ def main(argv=None):
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress', 'settle',
                                             'node', 'budget', 'hanging', 'style',
-                                            'fall', 'viewer', 'jitter'])
+                                            'fall', 'viewer', 'jitter', 'materials'])
     parser.add_argument('--json', action='store_true', help='print JSON on stdout')
     parser.add_argument('--quick', action='store_true', help='a short run (under a minute)')
     parser.add_argument('--plots', default='bench_out', help='directory for PNG plots')
@@ -121,14 +124,18 @@ def main(argv=None):
     elif args.command == 'style':
         from hair_sim.bench import style_keeping
         emit(style_keeping.run(args.quick), args.json, 'style')
-    elif args.command == 'fall':
+    elif args.command in ('fall', 'materials'):
         import importlib.util
         if importlib.util.find_spec('mujoco') is None:
-            print('hair_sim_bench fall: MuJoCo is not installed (make bench-deps)',
-                  file=sys.stderr)
+            print('hair_sim_bench %s: MuJoCo is not installed (make setup installs it)'
+                  % args.command, file=sys.stderr)
             return 1
-        from hair_sim.bench import fall
-        emit(fall.run(args.quick, args.plots), args.json, 'fall')
+        if args.command == 'fall':
+            from hair_sim.bench import fall
+            emit(fall.run(args.quick, args.plots), args.json, 'fall')
+        else:
+            from hair_sim.bench import materials
+            emit(materials.run(args.quick), args.json, 'materials')
     elif args.command == 'viewer':
         from hair_sim.bench import viewer
         emit(viewer.run(args.quick), args.json, 'viewer')

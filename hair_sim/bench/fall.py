@@ -35,7 +35,8 @@ those strands:
 
 Each run gives, from the stop, the last time a late strand's tip moved faster than the
 sleep tolerance (the plot shows the fastest tip), and where the tips end. MuJoCo is a
-benchmark-only dependency (make bench-deps); without it the command says so and exits 1.
+benchmark-only dependency (requirements.txt; make setup installs it); without it the
+command says so and exits 1.
 """
 
 import copy

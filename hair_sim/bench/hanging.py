@@ -33,6 +33,7 @@ Both are benchmark-only dependencies (requirements.txt installs them; nothing at
 imports them). Without one, its rows are left out.
 """
 
+from collections import namedtuple
 import math
 import time
 
@@ -50,10 +51,14 @@ AIR_DAMPING = 5.0
 GRAVITY = 9.81
 DURATION = 2.0
 CLAMP = 1e6                  # root_stiffness_scale that clamps the first segment
-# A strand of radius 0.1 mm: lambda = rho pi r^2 and EI = E pi r^4 / 4 give these
+# hair_sim's strand is a fibre of radius 0.1 mm: lambda = rho pi r^2 and EI = E pi r^4 / 4
+# give its density and Young's modulus (scene_params)
 FIBRE_RADIUS = 1e-4
-FIBRE_DENSITY = LINEAR_DENSITY / (math.pi * FIBRE_RADIUS ** 2)
-FIBRE_MODULUS = 4.0 * BENDING_STIFFNESS / (math.pi * FIBRE_RADIUS ** 4)
+# The strand of the scene: length (m), mass per metre (kg/m), EI (N m^2) and air damping
+# (1/s). MATERIAL is the issue's; hair_sim_bench materials runs others (bench/materials.py)
+Material = namedtuple('Material', ['length', 'linear_density', 'bending_stiffness',
+                                   'air_damping'])
+MATERIAL = Material(LENGTH, LINEAR_DENSITY, BENDING_STIFFNESS, AIR_DAMPING)
 
 
 def roots_and_normals(n_strands):
@@ -74,28 +79,30 @@ def head_model():
                      hairline={'front_x': 1.0, 'front_z': -1.0, 'back_x': -1.0, 'back_z': -1.0})
 
 
-def rest_strands(n_strands, n_segments):
+def rest_strands(n_strands, n_segments, material=MATERIAL):
     """Return the straight strands (N, S + 1, 3) along their normals."""
     roots, normals = roots_and_normals(n_strands)
-    s = np.linspace(0.0, LENGTH, n_segments + 1)
+    s = np.linspace(0.0, material.length, n_segments + 1)
     return roots[:, None, :] + s[None, :, None] * normals[:, None, :]
 
 
-def scene_params(model):
-    """Return the PhysicsParams of the scene for a hair_sim model."""
+def scene_params(model, material=MATERIAL):
+    """Return the PhysicsParams of the scene for a hair_sim model (a fibre of FIBRE_RADIUS)."""
+    density = material.linear_density / (math.pi * FIBRE_RADIUS ** 2)
+    modulus = 4.0 * material.bending_stiffness / (math.pi * FIBRE_RADIUS ** 4)
     return dict(model=model, hairs_per_strand=1.0, hair_radius=FIBRE_RADIUS,
-                hair_density=FIBRE_DENSITY, youngs_modulus=FIBRE_MODULUS, stiffness_scale=1.0,
-                root_stiffness_scale=CLAMP, damping=0.0, air_damping=AIR_DAMPING,
+                hair_density=density, youngs_modulus=modulus, stiffness_scale=1.0,
+                root_stiffness_scale=CLAMP, damping=0.0, air_damping=material.air_damping,
                 gravity=GRAVITY, gravity_compensation=False, inter_strip=False,
                 collisions=True, sleep_tolerance=0.0, drag_coefficient=0.0,
                 contact_friction=0.0)             # the scene: frictionless head contact
 
 
-def run_hair_sim(model, n_strands, n_segments, dt, duration=DURATION):
+def run_hair_sim(model, n_strands, n_segments, dt, duration=DURATION, material=MATERIAL):
     """Run the scene in hair_sim; return (tips at the end (N, 3), wall s per simulated s)."""
     from hair_sim.physics.simulator import HairSimulator
-    sim = HairSimulator.from_strands(rest_strands(n_strands, n_segments), head_model(),
-                                     **scene_params(model))
+    sim = HairSimulator.from_strands(rest_strands(n_strands, n_segments, material),
+                                     head_model(), **scene_params(model, material))
     sim.set_head_pose(0.0, [0, 0, 0], [0, 0, 0, 1])
     steps = int(round(duration / dt))
     # compile (not timed): the first frames of the fall take both the whole-step and the
@@ -112,18 +119,25 @@ def run_hair_sim(model, n_strands, n_segments, dt, duration=DURATION):
     return sim.pos[:, -1].copy(), wall / duration, sim
 
 
-def mujoco_xml(n_strands, n_segments, capsule_radius=5e-4):
-    """Return the MJCF of the scene: capsule chains on ball joints, the first welded."""
+def mujoco_xml(n_strands, n_segments, capsule_radius=5e-4, material=MATERIAL,
+               contact_solref=None):
+    """
+    Return the MJCF of the scene: capsule chains on ball joints, the first welded.
+
+    contact_solref: the contacts' (timeconst, dampratio), if not MuJoCo's default (0.02, 1).
+    """
     roots, normals = roots_and_normals(n_strands)
-    ds = LENGTH / n_segments
-    m = LINEAR_DENSITY * ds
+    ds = material.length / n_segments
+    m = material.linear_density * ds
     i_perp = m * ds * ds / 12.0
     i_axial = 0.5 * m * capsule_radius ** 2
-    k = BENDING_STIFFNESS / ds
+    k = material.bending_stiffness / ds
+    solref = '' if contact_solref is None else ' solref="%g %g"' % tuple(contact_solref)
     out = ['<mujoco model="hanging_hair">',
            '<option timestep="0.001" gravity="0 0 %g" integrator="implicitfast"/>' % -GRAVITY,
            '<size memory="2G"/>',
-           '<default><geom contype="1" conaffinity="0" condim="1" margin="0"/></default>',
+           '<default><geom contype="1" conaffinity="0" condim="1" margin="0"%s/></default>'
+           % solref,
            '<worldbody>',
            '<geom name="head" type="sphere" size="%g" contype="0" conaffinity="1"/>' % RADIUS]
     for s in range(n_strands):
@@ -148,15 +162,17 @@ def mujoco_xml(n_strands, n_segments, capsule_radius=5e-4):
     return '\n'.join(out)
 
 
-def run_mujoco(n_strands, n_segments, dt, duration=DURATION):
+def run_mujoco(n_strands, n_segments, dt, duration=DURATION, material=MATERIAL,
+               contact_solref=None):
     """Run the scene in MuJoCo; return (tips at the end (N, 3), wall s per simulated s)."""
     import mujoco
-    model = mujoco.MjModel.from_xml_string(mujoco_xml(n_strands, n_segments))
+    xml = mujoco_xml(n_strands, n_segments, material=material, contact_solref=contact_solref)
+    model = mujoco.MjModel.from_xml_string(xml)
     model.opt.timestep = dt
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    ds = LENGTH / n_segments
-    mass = LINEAR_DENSITY * ds
+    ds = material.length / n_segments
+    mass = material.linear_density * ds
     steps = int(round(duration / dt))
     root = model.body_rootid
     t0 = time.perf_counter()
@@ -166,7 +182,7 @@ def run_mujoco(n_strands, n_segments, dt, duration=DURATION):
         # velocity (angular, linear) about the subtree centre of mass of its root
         w, v = data.cvel[1:, :3], data.cvel[1:, 3:]
         r = data.xipos[1:] - data.subtree_com[root[1:]]
-        data.xfrc_applied[1:, :3] = -AIR_DAMPING * mass * (v + np.cross(w, r))
+        data.xfrc_applied[1:, :3] = -material.air_damping * mass * (v + np.cross(w, r))
         mujoco.mj_step2(model, data)
     wall = time.perf_counter() - t0
     # tips: the end of every strand's last capsule

@@ -117,6 +117,31 @@ def test_jitter_quick(tmp_path):
         assert abs(r['turn_short_deg'] - math.degrees(r['head_turn_deadband_rad'])) < 1e-3, r
 
 
+def test_materials_quick(tmp_path):
+    """
+    A reference and the two models per material and MuJoCo contact; what the README says.
+
+    The limp strands drape within the issue's 3 mm of MuJoCo. With little air damping the
+    strands whip into the head, and MuJoCo's two contacts end them centimetres apart: the
+    exact chain is within twice that spread of either, the thesis model far from both.
+    """
+    pytest.importorskip('mujoco')
+    rc, rows = bench('materials', tmp_path)
+    assert rc == 0
+    refs = [r for r in rows if r['solver'] == 'mujoco']
+    assert [(r['material'], 'solref' in r['reference']) for r in refs] == [
+        ('limp', False), ('little air damping', False), ('little air damping', True)]
+    assert all(r['stable'] and r['mean_tip_z'] < 0.0 for r in refs)
+    spread = refs[2]['vs_default_contacts_m']
+    assert spread > 0.005 and refs[0]['reference_self_m'] < 5e-4, refs
+    for r in rows:
+        if r['solver'] == 'hair_sim articulated':
+            bound = 3e-3 if r['material'] == 'limp' else 2.0 * spread
+            assert r['tip_rms_m'] < bound, r
+        elif r['solver'] == 'hair_sim anjyo':
+            assert r['tip_rms_m'] > 0.1, r
+
+
 @pytest.mark.parametrize('args, why', [
     (['stress', '--shape-stiffness', '0.03'], 'with --model articulated'),
     (['settle', '--shape-stiffness', '0.03'], 'with --model articulated'),
