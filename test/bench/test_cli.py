@@ -133,7 +133,7 @@ def test_materials_quick(tmp_path):
         ('limp', False), ('little air damping', False), ('little air damping', True)]
     assert all(r['stable'] and r['mean_tip_z'] < 0.0 for r in refs)
     spread = refs[2]['vs_default_contacts_m']
-    assert spread > 0.005 and refs[0]['reference_self_m'] < 5e-4, refs
+    assert spread > 0.005, refs
     for r in rows:
         if r['solver'] == 'hair_sim articulated':
             bound = 3e-3 if r['material'] == 'limp' else 2.0 * spread
