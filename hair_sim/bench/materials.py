@@ -24,8 +24,10 @@ import numpy as np
 from hair_sim.bench import hanging
 from hair_sim.bench.common import progress
 
-# name: (material, the MuJoCo step its chain is stable at; at twice these it is not, or
-# only just: NaN warnings and resets)
+# name: (material, MuJoCo's step for it; the reference is also run at half of it). The
+# stiff chain goes unstable at 1/4000 and 1/8000 s, the short one at 1/4000 s (NaN warnings
+# and resets): both take 1/16000 s. The whipping strands take 1/8000 s, where halving the
+# step still moves their tips 4 mm RMS (BENCHMARKS.md)
 OTHER_MATERIALS = {
     'issue': (hanging.MATERIAL, 1 / 4000),
     'stiff': (hanging.MATERIAL._replace(bending_stiffness=1e-6), 1 / 16000),

@@ -534,8 +534,8 @@ def test_hanging_scene_of_other_materials_matches_mujoco(name):
 
     Ten times stiffer or limper, half as long (1.5 cm segments) or two thirds longer, each
     against MuJoCo at a step its chain is stable at (bench/materials.py). Stiff strands
-    drape only part way, short ones hardly reach past the head; the tips
-    must be within the issue's 3 mm RMS of MuJoCo's at one step per frame all the same.
+    drape only part way, short ones hardly reach past the head; the tips must be within
+    the issue's 3 mm RMS of MuJoCo's at one step per frame all the same.
     """
     pytest.importorskip('mujoco')
     from hair_sim.bench.materials import OTHER_MATERIALS
