@@ -379,14 +379,21 @@ def _have(module):
     return importlib.util.find_spec(module) is not None
 
 
+def tip_distances(tips, ref):
+    """
+    Return the RMS and the median distance (m) between matching tips.
+
+    The strands near the top start on an unstable balance: which side they fall to is
+    chaotic, the median is not.
+    """
+    return rms(tips, ref), float(np.median(np.linalg.norm(tips - ref, axis=1)))
+
+
 def _errors(tips, ref, name):
     """Return {tip_rms_vs_<name>_m, tip_median_vs_<name>_m} (None without a reference)."""
     ok = tips is not None and ref is not None
-    return {'tip_rms_vs_%s_m' % name: rms(tips, ref) if ok else None,
-            # the strands near the top start on an unstable balance: which side they
-            # fall to is chaotic, the median is not
-            'tip_median_vs_%s_m' % name:
-                float(np.median(np.linalg.norm(tips - ref, axis=1))) if ok else None}
+    rms_m, median_m = tip_distances(tips, ref) if ok else (None, None)
+    return {'tip_rms_vs_%s_m' % name: rms_m, 'tip_median_vs_%s_m' % name: median_m}
 
 
 def _accuracy_record(solver, size, dt, tips, cost, references):

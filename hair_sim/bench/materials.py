@@ -41,12 +41,6 @@ STIFF_CONTACTS_DT = 1 / 16000     # (its contacts need the shorter step)
 SEGMENTS = 10
 
 
-def _distances(tips, reference):
-    """Return the tip RMS and median distance (m) from the reference."""
-    d = np.linalg.norm(tips - reference, axis=1)
-    return float(np.sqrt(np.mean(d * d))), float(np.median(d))
-
-
 def _reference(n_strands, name, material, dt, solref, halved=True):
     """
     Run MuJoCo at dt, and at dt / 2 if halved; return (the finer tips, its record).
@@ -62,7 +56,7 @@ def _reference(n_strands, name, material, dt, solref, halved=True):
                                         contact_solref=solref)
     ok = np.all(np.isfinite(tips)) and tips[:, 2].mean() < 0.0    # (a reset leaves them up)
     if ok and halved:
-        self_m = _distances(coarse, tips)[0]
+        self_m = hanging.rms(coarse, tips)
     contacts = 'default' if solref is None else 'solref %g s' % solref[0]
     record = {'material': name, **material._asdict(), 'strands': n_strands,
               'segments': SEGMENTS, 'reference': 'mujoco, %s contacts' % contacts,
@@ -82,7 +76,7 @@ def _hair_sim_record(reference_record, model, dt, material, reference):
         tips, cost = None, None
     rms = median = None
     if tips is not None and reference is not None:
-        rms, median = _distances(tips, reference)
+        rms, median = hanging.tip_distances(tips, reference)
     same = ('material', 'length', 'linear_density', 'bending_stiffness', 'air_damping',
             'strands', 'segments', 'reference')
     return {**{k: reference_record[k] for k in same}, 'solver': 'hair_sim ' + model,
@@ -113,8 +107,7 @@ def run(quick=False):
         if solref is not None and references.get((name, None)) is not None \
                 and reference is not None:
             # how far MuJoCo's two contacts put the tips from each other
-            record['vs_default_contacts_m'] = _distances(reference,
-                                                         references[name, None])[0]
+            record['vs_default_contacts_m'] = hanging.rms(reference, references[name, None])
         records.append(record)
         for dt in dts:
             records.append(_hair_sim_record(record, 'articulated', dt, material, reference))
