@@ -19,6 +19,9 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
     hair_sim_bench materials [--json] [--quick]                the same scene with other
                                 strands (stiffer, limper, shorter, longer, little air
                                 damping) and MuJoCo's contacts stiffer
+    hair_sim_bench turn     [--json] [--quick] [--plots DIR]   the same scene on a head
+                                that turns and slides: the exact chain against MuJoCo
+                                with the head as a prescribed base (make setup installs it)
     hair_sim_bench style    [--json] [--quick]                 every shipped style in the
                                 demo's gusts: how far from its look, and back after?
     hair_sim_bench fall     [--json] [--quick] [--plots DIR]   the strands the stress
@@ -41,7 +44,8 @@ from hair_sim.bench.common import clean, emit
 from hair_sim.physics.params import PhysicsParams
 
 
-PLOTTING = ('accuracy', 'scale', 'stress', 'hanging', 'fall')     # the commands that write --plots
+# the commands that write --plots
+PLOTTING = ('accuracy', 'scale', 'stress', 'hanging', 'fall', 'turn')
 
 
 def plots_folder_problem(path):
@@ -68,7 +72,8 @@ def main(argv=None):
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('command', choices=['accuracy', 'scale', 'skip', 'stress', 'settle',
                                             'node', 'budget', 'hanging', 'style',
-                                            'fall', 'viewer', 'jitter', 'materials'])
+                                            'fall', 'viewer', 'jitter', 'materials',
+                                            'turn'])
     parser.add_argument('--json', action='store_true', help='print JSON on stdout')
     parser.add_argument('--quick', action='store_true', help='a short run (under a minute)')
     parser.add_argument('--plots', default='bench_out', help='directory for PNG plots')
@@ -124,7 +129,7 @@ def main(argv=None):
     elif args.command == 'style':
         from hair_sim.bench import style_keeping
         emit(style_keeping.run(args.quick), args.json, 'style')
-    elif args.command in ('fall', 'materials'):
+    elif args.command in ('fall', 'materials', 'turn'):
         import importlib.util
         if importlib.util.find_spec('mujoco') is None:
             print('hair_sim_bench %s: MuJoCo is not installed (make setup installs it)'
@@ -133,6 +138,9 @@ def main(argv=None):
         if args.command == 'fall':
             from hair_sim.bench import fall
             emit(fall.run(args.quick, args.plots), args.json, 'fall')
+        elif args.command == 'turn':
+            from hair_sim.bench import moving_head
+            emit(moving_head.run(args.quick, args.plots), args.json, 'turn')
         else:
             from hair_sim.bench import materials
             emit(materials.run(args.quick), args.json, 'materials')

@@ -120,11 +120,13 @@ def run_hair_sim(model, n_strands, n_segments, dt, duration=DURATION, material=M
 
 
 def mujoco_xml(n_strands, n_segments, capsule_radius=5e-4, material=MATERIAL,
-               contact_solref=None):
+               contact_solref=None, head_joints=None):
     """
     Return the MJCF of the scene: capsule chains on ball joints, the first welded.
 
     contact_solref: the contacts' (timeconst, dampratio), if not MuJoCo's default (0.02, 1).
+    head_joints: MJCF joints and inertial of a head body that then carries the sphere and
+    the chains (body 1; the chains' bodies follow), instead of the world (moving_head.py).
     """
     roots, normals = roots_and_normals(n_strands)
     ds = material.length / n_segments
@@ -138,8 +140,11 @@ def mujoco_xml(n_strands, n_segments, capsule_radius=5e-4, material=MATERIAL,
            '<size memory="2G"/>',
            '<default><geom contype="1" conaffinity="0" condim="1" margin="0"%s/></default>'
            % solref,
-           '<worldbody>',
-           '<geom name="head" type="sphere" size="%g" contype="0" conaffinity="1"/>' % RADIUS]
+           '<worldbody>']
+    if head_joints is not None:
+        out.append('<body name="head_body">' + head_joints)
+    out.append('<geom name="head" type="sphere" size="%g" contype="0" conaffinity="1"/>'
+               % RADIUS)
     for s in range(n_strands):
         n = normals[s]
         # orientation: the body's z axis along the normal (quaternion of the minimal turn)
@@ -158,6 +163,8 @@ def mujoco_xml(n_strands, n_segments, capsule_radius=5e-4, material=MATERIAL,
                          'size="%g" mass="0"/>' % (pos, quat, joint, ds / 2, m, i_perp, i_perp,
                                                    i_axial, ds, capsule_radius))
         out.append(''.join(inner) + '</body>' * n_segments)
+    if head_joints is not None:
+        out.append('</body>')
     out += ['</worldbody>', '</mujoco>']
     return '\n'.join(out)
 

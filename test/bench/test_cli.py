@@ -142,6 +142,30 @@ def test_materials_quick(tmp_path):
             assert r['tip_rms_m'] > 0.1, r
 
 
+def test_turn_quick(tmp_path):
+    """
+    The exact chain at two steps, with and without smoothing, against MuJoCo's moving head.
+
+    What the README says: fed the poses alone (motion_smoothing 0) the tips stay within a
+    few mm of MuJoCo's through the turn at the default step, which the motion carries over
+    10 cm; the default velocity low-pass (0.02 s) lags them by over 1 cm mid-turn.
+    """
+    pytest.importorskip('mujoco')
+    rc, rows = bench('turn', tmp_path)
+    assert rc == 0
+    assert [(r['solver'], round(1 / r['dt']), r['motion_smoothing_s']) for r in rows] == [
+        ('mujoco', 4000, None), ('hair_sim articulated', 60, 0.0),
+        ('hair_sim articulated', 60, 0.02), ('hair_sim articulated', 240, 0.0),
+        ('hair_sim articulated', 240, 0.02)]
+    reference = rows[0]
+    assert reference['head_off_motion_m'] < 1e-4, reference
+    assert max(m for _, m in reference['tips_moved_median']) > 0.1, reference
+    exact, smoothed = rows[3], rows[4]
+    assert max(e for _, e, _ in exact['series']) < 4e-3, exact
+    assert smoothed['tip_median_m_at_2.15'] > 0.01, smoothed
+    assert os.path.isfile(tmp_path / 'turn_vs_mujoco.png')
+
+
 @pytest.mark.parametrize('args, why', [
     (['stress', '--shape-stiffness', '0.03'], 'with --model articulated'),
     (['settle', '--shape-stiffness', '0.03'], 'with --model articulated'),
