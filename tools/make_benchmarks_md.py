@@ -760,99 +760,124 @@ def jitter_section(rows):
 
 
 def turn_section(rows):
-    """Return the section on the hanging hair on a head that turns and slides."""
+    """Return the section on the hanging hair on a head that turns, nods and slides."""
     from hair_sim.bench import moving_head as M
-    ref = rows[0]
+    names = list(dict.fromkeys(r['motion'] for r in rows))
+    refs = {r['motion']: r for r in rows if r['solver'] == 'mujoco'}
+    r0 = refs[names[0]]
+
+    def moved_most(name):
+        return 1e3 * max(m for _, m in refs[name]['tips_moved_median'])
+    described = []
+    for name in names:
+        m = M.MOTIONS[name]
+        described.append('*%s*: %d degrees about (%s) and %g cm along (%s) in %g s, which '
+                         'carried MuJoCo\'s tips a median %.0f mm at most'
+                         % (name, round(math.degrees(m.angle)),
+                            ', '.join('%.2f' % x for x in m.axis),
+                            100 * math.sqrt(sum(x * x for x in m.shift)),
+                            ', '.join('%g' % x for x in m.shift), m.seconds, moved_most(name)))
+    phases = ('before', 'mid', 'end', 'after', 'last')
     parts = ['## Hanging hair on a moving head (`hair_sim_bench turn --json`)', '',
              'The hanging-hair scene (%d strands x %d segments) hangs still for %g s; then '
-             'in %g s the head turns %d degrees about an axis tilted from the vertical '
-             'towards x (mostly a yaw, partly a roll) through the sphere\'s centre, and '
-             'slides %g cm along x, from rest to rest (a quintic), and holds still until '
-             '%g s (`hair_sim/bench/moving_head.py`). hair_sim is fed the pose every step, '
+             'the head turns about an axis through the sphere\'s centre and slides, from '
+             'rest to rest (a quintic), and holds still until %g s '
+             '(`hair_sim/bench/moving_head.py`): %s. hair_sim is fed the pose every step '
              'and estimates the head\'s velocities and accelerations from the poses, with '
              '`motion_smoothing` 0 (their own differences) and its default 0.02 s (a '
              'low-pass of the head\'s velocity that holds out a tracker\'s noise, see the '
              'noisy tracker below). MuJoCo\'s head is a body on a slide and a hinge that '
              'carries the sphere and the capsule chains; it is prescribed (generalised '
              'forces giving it the motion\'s accelerations, its inertia 1e8 times the '
-             'hair\'s; it kept within %.2g mm of the motion at the roots), so its chains '
+             'hair\'s; it kept within %.2g mm of the motions at the roots), so its chains '
              'take the motion through their joints alone. The reference is MuJoCo at 1/%d '
-             's; its row gives how far its tips moved when its step was doubled. Tip RMS '
-             '(median) distance from it, at %s s; the motion carried MuJoCo\'s tips a '
-             'median %.0f mm by %g s and %.0f mm by %g s (the most, %.0f mm, at %g s).'
-             % (ref['strands'], ref['segments'], M.HOLD, M.MOVE,
-                round(math.degrees(M.TURN_ANGLE)), 100 * M.SHIFT, M.END,
-                1e3 * ref['head_off_motion_m'], round(1 / ref['dt']),
-                ', '.join('%g' % t for t in M.TABLE_TIMES),
-                1e3 * _moved(ref, M.TABLE_TIMES[1]), M.TABLE_TIMES[1],
-                1e3 * _moved(ref, M.TABLE_TIMES[2]), M.TABLE_TIMES[2],
-                1e3 * max(m for _, m in ref['tips_moved_median']),
-                max(ref['tips_moved_median'], key=lambda r: r[1])[0]), '',
-             '| solver | dt (s) | motion_smoothing | cost | %s | worst RMS, %g-%g s |'
-             % (' | '.join('%g s' % t for t in M.TABLE_TIMES), M.HOLD, M.END),
-             '| --- | --- | --- | --- | %s--- |' % ('--- | ' * len(M.TABLE_TIMES))]
+             's; its rows give how far its tips moved when its step was doubled. Tip RMS '
+             '(median) distance from it before the motion, at its middle and its end, '
+             '0.2 s on and at %g s, and the worst RMS over every %g s from %g s.'
+             % (r0['strands'], r0['segments'], M.HOLD, M.END, '; '.join(described),
+                1e3 * max(r['head_off_motion_m'] for r in refs.values()),
+                round(1 / r0['dt']), M.END, M.SAMPLE_EVERY, M.HOLD), '',
+             '| motion | solver | dt (s) | motion_smoothing | cost | before | mid-motion '
+             '| its end | 0.2 s on | at %g s | worst RMS |' % M.END,
+             '| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |']
     for r in rows:
         cells = []
-        for t in M.TABLE_TIMES:
-            rms, median = r['tip_rms_m_at_%g' % t], r['tip_median_m_at_%g' % t]
+        for phase in phases:
+            rms, median = r['tip_rms_m_' + phase], r['tip_median_m_' + phase]
             cells.append('-' if rms is None else '%.1f (%.1f) mm' % (1e3 * rms, 1e3 * median))
         worst = max((e for _, e, _ in r['series']), default=None)
         smoothing = r['motion_smoothing_s']
-        parts.append('| %s | 1/%d | %s | %s | %s | %s |' % (
-            r['solver'], round(1 / r['dt']), '-' if smoothing is None else '%g s' % smoothing,
+        parts.append('| %s | %s | 1/%d | %s | %s | %s | %s |' % (
+            r['motion'], r['solver'], round(1 / r['dt']),
+            '-' if smoothing is None else '%g s' % smoothing,
             fmt(r['wall_s_per_sim_s']), ' | '.join(cells),
             '-' if worst is None else '%.1f mm' % (1e3 * worst)))
 
-    def worst(dt, smoothing, model='hair_sim articulated'):
-        got = [max(e for _, e, _ in r['series']) for r in rows if r['solver'] == model
-               and abs(r['dt'] - dt) < 1e-12 and r['motion_smoothing_s'] == smoothing]
-        return 1e3 * got[0]
-    mid = M.TABLE_TIMES[1]
+    def pick(name, dt, smoothing):
+        return [r for r in rows if r['motion'] == name and r['solver'] ==
+                'hair_sim articulated' and abs(r['dt'] - dt) < 1e-12
+                and r['motion_smoothing_s'] == smoothing][0]
 
-    def at(dt, smoothing):
-        got = [r['tip_median_m_at_%g' % mid] for r in rows if r['solver'] ==
-               'hair_sim articulated' and abs(r['dt'] - dt) < 1e-12
-               and r['motion_smoothing_s'] == smoothing]
-        return 1e3 * got[0]
+    def worst(name, dt, smoothing):
+        return 1e3 * max(e for _, e, _ in pick(name, dt, smoothing)['series'])
+
+    def mid(name, dt, smoothing):
+        return 1e3 * pick(name, dt, smoothing)['tip_median_m_mid']
+    calm = [n for n in names if n != 'fast turn']
     parts += ['', '![](doc/bench/turn_vs_mujoco.png)', '',
               '**Reading.** The head\'s motion is the chain\'s base motion, and the tips\' '
               'lag comes out of its dynamics: fed the poses alone (`motion_smoothing` 0), '
-              'the exact chain\'s tips stay within %.1f mm RMS of MuJoCo\'s at every '
-              '%g s through and after the motion at the default 1/240 s, and %.1f mm at '
-              '1/1000 s, where the motion moves them by up to %.0f mm. At one step per 60 '
-              'Hz frame they are %.1f mm off (median, %g s): the head\'s acceleration is '
-              'taken from its last three poses, half a step behind the step\'s middle '
-              '(given the motion\'s own acceleration at the middle instead, that median '
-              'fell from 7.7 to 1.8 mm on 10 x 10, and at 2.3 s from 12.4 to 8.0 mm: '
-              'not the whole of it; extrapolating the acceleration half a step from the '
-              'last two brought the worst RMS at 1/60 s from 12.4 to 8.1 mm and took it '
-              'from 3.4 to 4.4 mm at 1/240 s, so it was not kept; /tmp scripts, '
-              '2026-11-30), and the error falls with the step (first order: %.1f, %.1f '
-              'and %.1f mm at 1/60, 1/240 and 1/1000 s). The default velocity low-pass, '
-              '0.02 s, which holds a tracker\'s noise out of the head\'s accelerations, '
-              'gives the chain a head that lags the poses its roots follow by about that '
-              'long: mid-turn the '
-              'tips are %.0f, %.0f and %.0f mm off (median, the same steps), at any step, '
-              'and %.0f mm RMS at worst (1/240 s). For poses without noise (an animation, '
-              'a motion capture, the demo\'s scripted head) set `physics.motion_smoothing` '
+              'the exact chain\'s tips stay within %s mm RMS of MuJoCo\'s at every %g s '
+              'through and after the %s at the default 1/240 s (%s mm at 1/1000 s). At one '
+              'step per 60 Hz frame they are %s mm off mid-motion (median): the head\'s '
+              'acceleration is taken from its last three poses, half a step behind the '
+              'step\'s middle (given the motion\'s own acceleration at the middle '
+              'instead, the turn\'s median at 2.15 s fell from 7.7 to 1.8 mm on 10 x 10, '
+              'and at 2.3 s from 12.4 to 8.0 mm: not the whole of it; extrapolating the '
+              'acceleration half a step from the last two brought the worst RMS at 1/60 s '
+              'from 12.4 to 8.1 mm and took it from 3.4 to 4.4 mm at 1/240 s, so it was '
+              'not kept; /tmp scripts, 2026-11-30), and the error falls with the step '
+              '(first order: the turn\'s %.1f, %.1f and %.1f mm at 1/60, 1/240 and 1/1000 '
+              's). The default velocity low-pass, 0.02 s, which holds a tracker\'s noise '
+              'out of the head\'s accelerations, gives the chain a head that lags the '
+              'poses its roots follow by about that long: mid-motion the tips are then %s '
+              'mm off (median) at every step. For poses without noise (an animation, a '
+              'motion capture, the demo\'s scripted head) set `physics.motion_smoothing` '
               '0 with the articulated model; for a noisy tracker the low-pass is what keeps '
               'the hair from shaking (thesis_long under 2 mm of noise at 120 Hz: without it '
-              'the tips stray about 50 mm on average, against 3.9 mm at 0.02 s; the deadbands '
-              'hold a still head\'s noise out entirely). The thesis model cannot drape '
-              'and stays %.0f mm or more away throughout.'
-              % (worst(1 / 240, 0.0), M.SAMPLE_EVERY, worst(1 / 1000, 0.0),
-                 1e3 * max(m for _, m in ref['tips_moved_median']),
-                 at(1 / 60, 0.0), mid, at(1 / 60, 0.0), at(1 / 240, 0.0), at(1 / 1000, 0.0),
-                 at(1 / 60, 0.02), at(1 / 240, 0.02), at(1 / 1000, 0.02),
-                 worst(1 / 240, 0.02),
+              'the tips stray about 50 mm on average, against 3.9 mm at 0.02 s; the '
+              'deadbands hold a still head\'s noise out entirely). The thesis model cannot '
+              'drape and stays %.0f mm or more away throughout.'
+              % ('/'.join('%.1f' % worst(n, 1 / 240, 0.0) for n in calm), M.SAMPLE_EVERY,
+                 ' and '.join(calm),
+                 '/'.join('%.1f' % worst(n, 1 / 1000, 0.0) for n in calm),
+                 '/'.join('%.1f' % mid(n, 1 / 60, 0.0) for n in calm),
+                 mid('turn', 1 / 60, 0.0), mid('turn', 1 / 240, 0.0),
+                 mid('turn', 1 / 1000, 0.0),
+                 ', '.join('%s %s' % (n, '/'.join('%.0f' % mid(n, h, 0.02)
+                                                  for h in (1 / 60, 1 / 240, 1 / 1000)))
+                           for n in names),
                  1e3 * min(e for r in rows if r['solver'] == 'hair_sim anjyo'
-                           for _, e, _ in r['series'])), '']
+                           for _, e, _ in r['series']))]
+    if 'fast turn' in names:
+        fast = refs['fast turn']
+        parts[-1] += (
+            ' The fast turn (peak 15 rad/s) is harder: at 1/240 s its worst RMS is %.1f mm '
+            '(median %.1f mm), and at 1/1000 s %.1f mm (median within %.1f mm), against '
+            'MuJoCo\'s own %.1f mm when its step is halved. At 1/240 s that is mostly the '
+            'step; at 1/1000 s mostly the head\'s contact, which the swinging strands '
+            'leave and meet again: with the contact off in both solvers (20 x 10, a /tmp '
+            'script, 2026-11-30) the worst RMS at 1/1000 s fell from 6.4 to 2.2 mm, at '
+            '1/240 s only from 7.5 to 6.0 mm. Where strands strike the head, hair_sim\'s '
+            'hard vertex contact and MuJoCo\'s soft capsule contact part, as for the '
+            'whipping strands of the materials bench.'
+            % (worst('fast turn', 1 / 240, 0.0),
+               1e3 * max(m for _, _, m in pick('fast turn', 1 / 240, 0.0)['series']),
+               worst('fast turn', 1 / 1000, 0.0),
+               1e3 * max(m for _, _, m in pick('fast turn', 1 / 1000, 0.0)['series']),
+               1e3 * max(e for _, e, _ in fast['series'])))
+    parts.append('')
     return parts
-
-
-def _moved(ref, t):
-    """Return the reference's median tip motion (m) since the head started moving, at t."""
-    return [m for s, m in ref['tips_moved_median'] if abs(s - t) < 1e-9][0]
 
 
 def materials_section(rows):

@@ -20,8 +20,9 @@ hair_sim_bench: benchmarks that print JSON and write PNG plots.
                                 strands (stiffer, limper, shorter, longer, little air
                                 damping) and MuJoCo's contacts stiffer
     hair_sim_bench turn     [--json] [--quick] [--plots DIR]   the same scene on a head
-                                that turns and slides: the exact chain against MuJoCo
-                                with the head as a prescribed base (make setup installs it)
+                                that turns, nods and slides: the exact chain against
+                                MuJoCo with the head as a prescribed base (make setup
+                                installs it)
     hair_sim_bench style    [--json] [--quick]                 every shipped style in the
                                 demo's gusts: how far from its look, and back after?
     hair_sim_bench fall     [--json] [--quick] [--plots DIR]   the strands the stress

@@ -586,12 +586,13 @@ def test_hanging_hair_on_a_turning_sliding_head_follows_mujoco():
     """
     pytest.importorskip('mujoco')
     from hair_sim.bench import moving_head
-    reference, _, head_off = moving_head.run_mujoco(10, 10, hanging.REFERENCE_DT[10])
+    turn = moving_head.MOTIONS['turn']
+    reference, _, head_off = moving_head.run_mujoco(turn, 10, 10, hanging.REFERENCE_DT[10])
     assert head_off < 1e-4                             # MuJoCo's head took the motion
     moved = np.median(np.linalg.norm(reference[moving_head.END] -
                                      reference[moving_head.HOLD], axis=1))
     assert moved > 0.1, moved
-    tips, _ = moving_head.run_hair_sim('articulated', 10, 10, DEFAULT_DT, 0.0)
+    tips, _ = moving_head.run_hair_sim(turn, 'articulated', 10, 10, DEFAULT_DT, 0.0)
     errors = [(t, hanging.rms(tips[t], reference[t])) for t in moving_head.sample_times()]
     assert max(e for _, e in errors) < 4e-3, errors
 
