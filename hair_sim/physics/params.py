@@ -97,7 +97,9 @@ DESCRIPTIONS = {
     'max_head_angular_speed': 'a head turning over %g rad faster than this is a teleport: '
                               'the hair is carried with it (rad/s)' % TELEPORT_ANGLE,
     'max_head_acceleration': 'head accelerations are clamped to this (m/s^2)',
-    'motion_smoothing': 'low-pass time constant of the head\'s velocity (s)',
+    'motion_smoothing': 'low-pass time constant of the head\'s velocity (s): holds a '
+                        'tracker\'s noise out, and lags the head the hair feels by about '
+                        'as long; 0 for poses without noise',
     'head_deadband': 'a tracker\'s noise: the head stays put until a pose is this far from '
                      'it, then trails the pose by this much (m); 0: off',
     'head_turn_deadband': 'the same for the head\'s turn: a pose turned less than this from '
