@@ -47,6 +47,7 @@ import numpy as np
 
 from hair_sim import load_hairstyle, paths
 from hair_sim.bench.common import progress, save_figure
+from hair_sim.bench.hanging import apply_air_damping, chain_tips
 from hair_sim.bench.scenarios import violent
 from hair_sim.bench.stress import GALE
 from hair_sim.physics.simulator import HairSimulator
@@ -188,19 +189,15 @@ def run_mujoco(state, spheres, duration):
     length = state['length']
     flat = bodies.ravel()
     mass = state['mass'].ravel()[:, None]
-    root = model.body_rootid[flat]
     couples = np.zeros(bodies.shape + (3,))
     every = int(round(SAMPLE_S / MUJOCO_DT))
 
     def tips():
-        return np.array([data.xpos[b[-1]] + data.xmat[b[-1]].reshape(3, 3)[:, 2] * ln[-1]
-                         for b, ln in zip(bodies, length)])
+        return chain_tips(data, bodies[:, -1], length[:, -1])
     out = []
     for step in range(int(round(duration / MUJOCO_DT))):
         mujoco.mj_step1(model, data)
-        w, v = data.cvel[flat, :3], data.cvel[flat, 3:]        # about the subtree's com
-        r = data.xipos[flat] - data.subtree_com[root]
-        data.xfrc_applied[flat, :3] = -state['air'] * mass * (v + np.cross(w, r))
+        apply_air_damping(model, data, flat, state['air'] * mass)
         for a, b in enumerate(bodies):
             axes = np.ascontiguousarray(data.xmat[b].reshape(-1, 3, 3)[:, :, 2])
             chain_spring_couples(axes, state['R_head'], state['rest_rel'][a],

@@ -169,6 +169,25 @@ def mujoco_xml(n_strands, n_segments, capsule_radius=5e-4, material=MATERIAL,
     return '\n'.join(out)
 
 
+def apply_air_damping(model, data, bodies, drag):
+    """
+    Set the force -drag v at the centre of mass of each of MuJoCo's `bodies` (xfrc_applied).
+
+    bodies: a slice or index array of bodies; drag: nu m, a number or a column per body.
+    cvel is each body's velocity (angular, linear) about the subtree centre of mass of its
+    root, so v is taken back to the body's own centre of mass.
+    """
+    w, v = data.cvel[bodies, :3], data.cvel[bodies, 3:]
+    r = data.xipos[bodies] - data.subtree_com[model.body_rootid[bodies]]
+    data.xfrc_applied[bodies, :3] = -drag * (v + np.cross(w, r))
+
+
+def chain_tips(data, last_bodies, last_lengths):
+    """Return the far ends (N, 3) of MuJoCo capsules along their bodies' z: the tips."""
+    return data.xpos[last_bodies] + \
+        data.xmat[last_bodies].reshape(-1, 3, 3)[:, :, 2] * np.reshape(last_lengths, (-1, 1))
+
+
 def run_mujoco(n_strands, n_segments, dt, duration=DURATION, material=MATERIAL,
                contact_solref=None):
     """Run the scene in MuJoCo; return (tips at the end (N, 3), wall s per simulated s)."""
@@ -181,23 +200,16 @@ def run_mujoco(n_strands, n_segments, dt, duration=DURATION, material=MATERIAL,
     ds = material.length / n_segments
     mass = material.linear_density * ds
     steps = int(round(duration / dt))
-    root = model.body_rootid
+    segments = slice(1, None)                   # every body but the world's
     t0 = time.perf_counter()
     for _ in range(steps):
         mujoco.mj_step1(model, data)
-        # air damping: -nu m v at each segment's centre of mass; cvel is each body's
-        # velocity (angular, linear) about the subtree centre of mass of its root
-        w, v = data.cvel[1:, :3], data.cvel[1:, 3:]
-        r = data.xipos[1:] - data.subtree_com[root[1:]]
-        data.xfrc_applied[1:, :3] = -material.air_damping * mass * (v + np.cross(w, r))
+        apply_air_damping(model, data, segments, material.air_damping * mass)
         mujoco.mj_step2(model, data)
     wall = time.perf_counter() - t0
     # tips: the end of every strand's last capsule
-    tips = []
-    for s in range(n_strands):
-        b = 1 + s * n_segments + n_segments - 1
-        tips.append(data.xpos[b] + data.xmat[b].reshape(3, 3)[:, 2] * ds)
-    return np.array(tips), wall / duration
+    last = 1 + np.arange(n_strands) * n_segments + n_segments - 1
+    return chain_tips(data, last, np.full(n_strands, ds)), wall / duration
 
 
 def rms(a, b):

@@ -139,7 +139,6 @@ def run_mujoco(motion, n_strands, n_segments, dt):
     mujoco.mj_forward(model, data)
     ds = hanging.LENGTH / n_segments
     mass = hanging.LINEAR_DENSITY * ds
-    root = model.body_rootid
     amplitude = np.array([shift, motion.angle])
     kp, kv = HEAD_GAIN
     samples = _sample_steps(dt)
@@ -148,10 +147,8 @@ def run_mujoco(motion, n_strands, n_segments, dt):
     t0 = time.perf_counter()
     for i in range(int(round(END / dt))):
         mujoco.mj_step1(model, data)
-        # air damping on the segments, as hanging.run_mujoco
-        w, v = data.cvel[2:, :3], data.cvel[2:, 3:]
-        r = data.xipos[2:] - data.subtree_com[root[2:]]
-        data.xfrc_applied[2:, :3] = -hanging.AIR_DAMPING * mass * (v + np.cross(w, r))
+        # air damping on the segments (bodies 2 on), as hanging.run_mujoco
+        hanging.apply_air_damping(model, data, slice(2, None), hanging.AIR_DAMPING * mass)
         # the head: the motion's acceleration (its own inertia; the hair's is under 1e-7)
         # plus the PD on the residual, over the velocity-product and gravity forces
         s, ds_dt, d2s = progress_of_motion(motion, i * dt)
@@ -163,8 +160,8 @@ def run_mujoco(motion, n_strands, n_segments, dt):
             s = progress_of_motion(motion, (i + 1) * dt)[0]
             off = np.abs(data.qpos[:2] - amplitude * s) * [1.0, hanging.ROOT_OFFSET]
             worst = max(worst, float(off.max()))
-            tips[samples[i + 1]] = (data.xpos[tip_bodies] + data.xmat[tip_bodies].reshape(
-                -1, 3, 3)[:, :, 2] * ds)
+            tips[samples[i + 1]] = hanging.chain_tips(data, tip_bodies,
+                                                      np.full(n_strands, ds))
     return tips, (time.perf_counter() - t0) / END, worst
 
 
