@@ -129,6 +129,7 @@ class HairSimulator:
         self._last_substeps = 1             # how many substeps each strand took last step
         self._R = np.eye(3)
         self._p = np.zeros(3)
+        self._carried = False               # whether a teleport carried the hair this step
 
     def set_style(self, style):
         """
@@ -449,6 +450,7 @@ class HairSimulator:
         self._turn = np.zeros(3)                  # (unless the head turns in this step)
         self._pose_time = t
         self._head_moved = False
+        self._carried = False               # (a teleport carried the hair this step)
         pose = self.motion.pose_at(t)
         if pose is None:
             return False
@@ -456,6 +458,7 @@ class HairSimulator:
         R_new = quat_to_matrix(pose[1])
         if self.motion.teleported:                  # carry the hair rigidly, no kick
             self.motion.teleported = False
+            self._carried = True
             dR = R_new @ self._R.T
             self.solver.rotate(dR)
             for arr in (self.pos, self.pos_prev):
@@ -506,6 +509,8 @@ class HairSimulator:
             self.time_dropped += dt - h
         t = self.time + h
         self.counters['steps'] += 1
+        # (a retry cut to max_step_work takes the head again from here)
+        head = self._head_state() if self.max_step_work is not None else None
         moved = self._advance_head(t, h)
         if moved:
             self._wake('head')
@@ -518,7 +523,7 @@ class HairSimulator:
             self.last_step_time = _time.perf_counter() - t0
             return False
         try:
-            return self._awake_step(t, h, t0)
+            return self._awake_step(t, h, t0, head)
         finally:
             if h < dt:
                 self.motion.skip(dt - h)          # the dropped time: the pose clock moves on
@@ -547,8 +552,13 @@ class HairSimulator:
             h *= max(cap / work, 1.0 / finest)
         return h
 
-    def _awake_step(self, t, h, t0):
-        """Simulate the step of h ending at t (awake, begun at perf_counter t0); return True."""
+    def _awake_step(self, t, h, t0, head):
+        """
+        Simulate the step of h ending at t (awake, begun at perf_counter t0); return True.
+
+        head: the head's state before the step (_head_state; None without max_step_work),
+        for a retry cut to max_step_work (_cut_retry).
+        """
         saved = self._saved() if self.solver.retries_diverged_steps else None
         finite = self._simulated(t, h)
         if saved is not None:
@@ -595,6 +605,8 @@ class HairSimulator:
             # next step diverged): it is taken finer again the same way. Past the budget a
             # finite state is kept, as before.
             if again is not None:
+                if head is not None and not self._carried:
+                    t, h, again = self._cut_retry(head, t, h, again)
                 finite = self._take_again(saved, t, h, again)
                 while True:
                     if finite:
@@ -754,6 +766,45 @@ class HairSimulator:
         """Return the segment-substeps of a step taken at counts (a number, or per strand)."""
         per_strand = np.broadcast_to(counts, (self.pos.shape[0],))
         return int(np.sum(per_strand)) * (self.pos.shape[1] - 1)
+
+    def _head_state(self):
+        """Return copies of what _advance_head changes (the head's pose and motion)."""
+        return (self._R.copy(), self._p.copy(), self._v.copy(), self._w.copy(),
+                self._a.copy(), self._alpha.copy(), self._turn.copy(), self._pose_time,
+                self._head_moved)
+
+    def _cut_retry(self, head, t, h, counts):
+        """
+        Return (t, h, counts) of a retry that fits max_step_work: the step cut if it must be.
+
+        A retry takes the counts the swing at the first try's end needs, and those can be
+        far over the bound: a style at rest hit by a 40 m/s gale took its first 1/60 s step
+        at 1 substep, outran it and was taken again at about 230 (212 796 segment-substeps
+        in 0.15-0.26 s, ten times a node's frame share; /tmp script, 2026-11-30). As step()
+        does for a step that would not fit, the retry then simulates the share of the step
+        that fits, with substeps no longer than the counts give (each count scaled and
+        rounded up), and the rest of the step is dropped (shortened_steps, time_dropped;
+        the pose clock moves on). The head is taken again to its pose at the cut step's end.
+        A cut retry that outruns its counts again is taken finer within RETRY_MAX_WORK, as
+        any retry is, not within max_step_work: that is the stability net.
+        """
+        cap = self.max_step_work
+        work = self._retry_work(counts)
+        if cap is None or work <= cap:
+            return t, h, counts
+        finest = int(np.max(counts))
+        share = max(cap / work, 1.0 / finest)       # at least one substep of the finest
+        cut = np.maximum(1, np.ceil(np.asarray(counts) * share)).astype(np.int64)
+        counts = int(cut) if np.ndim(counts) == 0 else cut
+        kept = h * share
+        (self._R, self._p, self._v, self._w, self._a, self._alpha, self._turn,
+         self._pose_time, self._head_moved) = head
+        t = self.time + kept
+        self._advance_head(t, kept)
+        self.counters['shortened_steps'] += 1
+        self.time_dropped += h - kept
+        self.motion.skip(h - kept)                # the dropped time: the pose clock moves on
+        return t, kept, counts
 
     def _simulated(self, t, h, at_least=1, shared=False):
         """Run _simulate; return whether the state came out finite."""

@@ -74,16 +74,26 @@ SERVICE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 # the credit (a 1/60 s step of the articulated model in a 40 m/s gale: up to 0.4 s) leaves
 # at most this much owed, so the solver is back within PHYSICS_CREDIT / share s.
 PHYSICS_CREDIT = 0.1
+# At most this many frame ticks' share of the wall time (max_physics_share / frame rate) of
+# the credit is spent in one call: spent at once, a full credit (a step's work bound from
+# it, at a cost per segment-substep measured in calm air, two to three times under a
+# gale's with its contacts) stopped the outputs for 200-300 ms at each onset of a 40 m/s
+# gale on the articulated model, 50-120 ms so (a step taken again is cut to the bound too,
+# HairSimulator._cut_retry). One tick's share dropped simulated time in the demo's
+# ordinary gusts (24 ms in 20 s at sim_rate 60); two dropped none (/tmp scripts,
+# 2026-11-30).
+FRAME_SPEND_TICKS = 2.0
 # A first guess of the wall time (s) of one segment-substep; the node then measures it
 # (the median over the last SEGMENT_COST_WINDOW awake steps, each step's wall time over its
 # segment-substeps: a hiccup does not move it, and every awake step updates it). A step
-# may update as many as the solver's credit pays for, and at least as many as fit in its
-# frame tick's share of the wall time (max_physics_share / frame_rate): the articulated
-# model's substeps grow with how fast its tips whip, and one step of it in a gale took up
-# to 0.4 s, which stopped the outputs for as long; a step cut to what fits simulates less
-# time (HairSimulator.max_step_work). A bound from the tick alone cut the demo's steps in
-# its ordinary gusts too, and a per-segment cost measured only on large steps stuck high
-# once steps were cut small: the hair then ran at a tenth of real time after the gale.
+# may update as many as this call's share of the credit pays for, and at least as many as
+# fit in its frame tick's share of the wall time (max_physics_share / frame_rate): the
+# articulated model's substeps grow with how fast its tips whip, and one step of it in a
+# gale took up to 0.4 s, which stopped the outputs for as long; a step cut to what fits
+# simulates less time (HairSimulator.max_step_work). A bound from the tick alone cut the
+# demo's steps in its ordinary gusts too, and a per-segment cost measured only on large
+# steps stuck high once steps were cut small: the hair then ran at a tenth of real time
+# after the gale.
 SEGMENT_SUBSTEP_S = 1e-6
 SEGMENT_COST_WINDOW = 64
 
@@ -635,7 +645,8 @@ class HairSimNode(Node):
         Step the solver up to the node clock (at most max_steps_per_frame steps).
 
         The solver steps while it has wall-time credit (max_physics_share of the wall
-        time, PHYSICS_CREDIT): the simulated time of the steps it cannot take is dropped,
+        time, PHYSICS_CREDIT), and spends at most FRAME_SPEND_TICKS frame ticks' share of
+        it in one call: the simulated time of the steps it cannot take is dropped,
         so that a costly step (the articulated model in a gale) slows the hair, not the
         outputs and the callbacks.
         """
@@ -670,9 +681,10 @@ class HairSimNode(Node):
         tick = self._p('max_physics_share') / max(self._p('frame_rate'), self._p('publish_rate'))
         cost = float(np.median(self._segment_costs)) if self._segment_costs else \
             SEGMENT_SUBSTEP_S
+        spend = min(self._credit, FRAME_SPEND_TICKS * tick)       # (this call's share)
         try:
-            while done < n and self._credit > 0.0:
-                sim.max_step_work = max(1, int(max(self._credit, tick) / cost))
+            while done < n and spend > 0.0:
+                sim.max_step_work = max(1, int(max(spend, tick) / cost))
                 segments = sim.counters['segment_updates']
                 substeps = sim.counters['substeps']
                 t0 = time.perf_counter()
@@ -681,6 +693,7 @@ class HairSimNode(Node):
                 finally:
                     took = time.perf_counter() - t0
                     self._credit = max(-PHYSICS_CREDIT, self._credit - took)
+                    spend = min(spend - took, self._credit)
                     done += 1
                     segments = sim.counters['segment_updates'] - segments
                     self._last_step = (took, sim.counters['substeps'] - substeps)
