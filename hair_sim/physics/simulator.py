@@ -780,11 +780,12 @@ class HairSimulator:
         A retry takes the counts the swing at the first try's end needs, and those can be
         far over the bound: a style at rest hit by a 40 m/s gale took its first 1/60 s step
         at 1 substep, outran it and was taken again at about 230 (212 796 segment-substeps
-        in 0.15-0.26 s, ten times a node's frame share; /tmp script, 2026-11-30). As step()
-        does for a step that would not fit, the retry then simulates the share of the step
-        that fits, with substeps no longer than the counts give (each count scaled and
-        rounded up), and the rest of the step is dropped (shortened_steps, time_dropped;
-        the pose clock moves on). The head is taken again to its pose at the cut step's end.
+        in 0.15-0.26 s, over ten times a node's frame share; /tmp script, 2026-11-30). As
+        step() does for a step that would not fit, the retry then simulates the share of
+        the step that fits, with substeps no longer than the counts give (each count
+        scaled and rounded up), and the rest of the step is dropped (shortened_steps,
+        time_dropped; the pose clock moves on). The head is taken again to its pose at the
+        cut step's end.
         A cut retry that outruns its counts again is taken finer within RETRY_MAX_WORK, as
         any retry is, not within max_step_work: that is the stability net.
         """
