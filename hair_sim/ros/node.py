@@ -77,11 +77,11 @@ PHYSICS_CREDIT = 0.1
 # At most this many frame ticks' share of the wall time (max_physics_share / frame rate) of
 # the credit is spent in one call: spent at once, a full credit (a step's work bound from
 # it, at a cost per segment-substep measured in calm air, two to three times under a
-# gale's with its contacts) stopped the outputs for 200-300 ms at each onset of a 40 m/s
-# gale on the articulated model, 50-120 ms so (a step taken again is cut to the bound too,
-# HairSimulator._cut_retry). One tick's share dropped simulated time in the demo's
-# ordinary gusts (24 ms in 20 s at sim_rate 60); two dropped none (/tmp scripts,
-# 2026-11-30).
+# gale's with its contacts) stopped the outputs for about 0.2 s at each onset of a 40 m/s
+# gale on the articulated model (the node's publish_gap_max_ms up to 227 ms), now about
+# 0.1 s (a step taken again is cut to the bound too, HairSimulator._cut_retry; README).
+# One tick's share dropped simulated time in the demo's ordinary gusts (24 ms in 20 s at
+# sim_rate 60); two dropped none (/tmp scripts, 2026-11-30).
 FRAME_SPEND_TICKS = 2.0
 # A first guess of the wall time (s) of one segment-substep; the node then measures it
 # (the median over the last SEGMENT_COST_WINDOW awake steps, each step's wall time over its
