@@ -129,7 +129,6 @@ class HairSimulator:
         self._last_substeps = 1             # how many substeps each strand took last step
         self._R = np.eye(3)
         self._p = np.zeros(3)
-        self._carried = False               # whether a teleport carried the hair this step
 
     def set_style(self, style):
         """
@@ -450,7 +449,6 @@ class HairSimulator:
         self._turn = np.zeros(3)                  # (unless the head turns in this step)
         self._pose_time = t
         self._head_moved = False
-        self._carried = False               # (a teleport carried the hair this step)
         pose = self.motion.pose_at(t)
         if pose is None:
             return False
@@ -458,7 +456,6 @@ class HairSimulator:
         R_new = quat_to_matrix(pose[1])
         if self.motion.teleported:                  # carry the hair rigidly, no kick
             self.motion.teleported = False
-            self._carried = True
             dR = R_new @ self._R.T
             self.solver.rotate(dR)
             for arr in (self.pos, self.pos_prev):
@@ -509,8 +506,10 @@ class HairSimulator:
             self.time_dropped += dt - h
         t = self.time + h
         self.counters['steps'] += 1
-        # (a retry cut to max_step_work takes the head again from here)
-        head = self._head_state() if self.max_step_work is not None else None
+        # (a retry cut to max_step_work takes the head again from here; not after a
+        # teleport, which carries the hair with the head before the step)
+        head = self._head_state() if self.max_step_work is not None and \
+            not self.motion.teleported else None
         moved = self._advance_head(t, h)
         if moved:
             self._wake('head')
@@ -556,8 +555,8 @@ class HairSimulator:
         """
         Simulate the step of h ending at t (awake, begun at perf_counter t0); return True.
 
-        head: the head's state before the step (_head_state; None without max_step_work),
-        for a retry cut to max_step_work (_cut_retry).
+        head: the head's state before the step (_head_state; None without max_step_work
+        or after a teleport), for a retry cut to max_step_work (_cut_retry).
         """
         saved = self._saved() if self.solver.retries_diverged_steps else None
         finite = self._simulated(t, h)
@@ -605,7 +604,7 @@ class HairSimulator:
             # next step diverged): it is taken finer again the same way. Past the budget a
             # finite state is kept, as before.
             if again is not None:
-                if head is not None and not self._carried:
+                if head is not None:
                     t, h, again = self._cut_retry(head, t, h, again)
                 finite = self._take_again(saved, t, h, again)
                 while True:
