@@ -501,9 +501,7 @@ class HairSimulator:
         h = _step_length(dt)
         t0 = _time.perf_counter()
         h = self._affordable(h)
-        if h < dt:
-            self.counters['shortened_steps'] += 1
-            self.time_dropped += dt - h
+        dropped = self.time_dropped
         t = self.time + h
         self.counters['steps'] += 1
         # (a retry cut to max_step_work takes the head again from here; not after a
@@ -525,7 +523,9 @@ class HairSimulator:
             return self._awake_step(t, h, t0, head)
         finally:
             if h < dt:
-                self.motion.skip(dt - h)          # the dropped time: the pose clock moves on
+                self._drop(dt - h)
+            if self.time_dropped > dropped:      # (once, cut here or its retry cut, or both)
+                self.counters['shortened_steps'] += 1
 
     def _affordable(self, h):
         """
@@ -801,10 +801,13 @@ class HairSimulator:
          self._pose_time, self._head_moved) = head
         t = self.time + kept
         self._advance_head(t, kept)
-        self.counters['shortened_steps'] += 1
-        self.time_dropped += h - kept
-        self.motion.skip(h - kept)                # the dropped time: the pose clock moves on
+        self._drop(h - kept)
         return t, kept, counts
+
+    def _drop(self, seconds):
+        """Drop `seconds` of input time: time_dropped counts them; the pose clock moves on."""
+        self.time_dropped += seconds
+        self.motion.skip(seconds)
 
     def _simulated(self, t, h, at_least=1, shared=False):
         """Run _simulate; return whether the state came out finite."""

@@ -63,6 +63,8 @@ def test_a_bounded_step_keeps_its_bound_and_the_input_clock(long_style, cap):
     assert retried.sum() >= 1
     assert work[retried > 0].max() <= 2 * (cap + slack), work[retried > 0]
     assert sim.counters['shortened_steps'] > len(records) // 2       # the gale needs more
+    # a step counts once, whether it was cut, its retry was, or both
+    assert sim.counters['shortened_steps'] == int((simulated < DT - 1e-12).sum())
     assert simulated.min() < 0.5 * DT
     # no input time lost or invented: simulated plus dropped is what was stepped
     assert abs(sim.time + sim.time_dropped - (t + DT)) < 1e-9, (sim.time, sim.time_dropped, t)
