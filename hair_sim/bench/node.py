@@ -36,12 +36,28 @@ def _node_cmd(ns, meshcat):
             '-r', '__ns:=%s' % ns, '-p', 'meshcat.enabled:=%s' % str(meshcat).lower()]
 
 
-def _probe(namespaces, duration, warmup, topics, meshcat_url=None):
+def _probe(namespaces, duration, warmup, topics, meshcat_url=None, recording=False):
+    """
+    Start a probe process; with `recording`, return once its window is open.
+
+    (It says so on stderr, after its discovery and warm-up.)
+    """
     cmd = [sys.executable, '-m', 'hair_sim.bench.probe', '--namespaces'] + namespaces + [
         '--duration', str(duration), '--warmup', str(warmup), '--topics'] + topics
     if meshcat_url:
         cmd += ['--meshcat-url', meshcat_url]
-    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    if not recording:
+        return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                                text=True)
+    with tempfile.TemporaryFile('w+') as err:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err, text=True)
+        end = time.monotonic() + 120.0
+        while proc.poll() is None and time.monotonic() < end:
+            err.seek(0)
+            if 'recording' in err.read():
+                break
+            time.sleep(0.02)
+    return proc
 
 
 def _meshcat_url(log_path, timeout=60.0):
@@ -170,7 +186,9 @@ def gale(duration=10.0, speed=40.0, turbulence=1.0):
     `turbulence` that this process publishes at 20 Hz: the rates, the latency, the longest
     gap, the poses accepted, and the simulated time the node dropped in the probe's window
     (its solver gets max_physics_share of the wall time; a step in this gale needs up to
-    0.4 s of substeps).
+    0.4 s of substeps). Each phase's wind starts once the probe's window is open, so the
+    gale's longest gap includes its onset: the hair at rest outruns its first step, and a
+    retry not cut to the bound stopped the outputs for 155-240 ms there (2026-11-30).
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -193,7 +211,8 @@ def gale(duration=10.0, speed=40.0, turbulence=1.0):
             w = Wind()
             w.velocity.x, w.velocity.y = wind, (5.0 if wind else 0.0)
             w.turbulence, w.seed = (turbulence if wind else 0.0), 3
-            probe = _probe(['/'], duration, 1.0, ['hair_mesh', 'hair_state'])
+            probe = _probe(['/'], duration, 1.0, ['hair_mesh', 'hair_state'],
+                           recording=True)
             end = time.monotonic() + duration + 6.0
             while probe.poll() is None and time.monotonic() < end + 60.0:
                 if time.monotonic() < end:
