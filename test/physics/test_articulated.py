@@ -953,24 +953,42 @@ def _nod(amplitude, frequency):
                       0.5 * amplitude * w * math.sin(w * t))
 
 
-def _nodding_chain_tips(dt, root_stiffness_scale, amplitude=0.6, frequency=1.5):
+NOD = dict(n=10, length=0.03, duration=2.0, amplitude=0.6, frequency=1.5)
+
+
+def _nodding_chain_exact(root_stiffness_scale):
+    """
+    Return t -> the exact positions (T, n + 1, 3) of ten hanging rods on a nodding head.
+
+    The independent Lagrangian (scipy) with the base's angle and rate (beta of _nod) in
+    the first joint (hair_sim.bench.accuracy.articulated_chain_reference with `base`),
+    relative to the root; dense in time, so one integration serves every step size.
+    """
+    from hair_sim.bench import accuracy
+    from hair_sim.physics.params import PhysicsParams
+    params = PhysicsParams().replaced(root_stiffness_scale=root_stiffness_scale,
+                                      motion_smoothing=0.0)
+    return accuracy.articulated_chain_reference(
+        NOD['n'],
+        NOD['length'],
+        NOD['duration'],
+        params,
+        base=_nod(NOD['amplitude'], NOD['frequency']),
+        hanging=True)
+
+
+def _nodding_chain_tips(dt, root_stiffness_scale, ref):
     """
     Return the tips of ten hanging rods on a nodding head, and the exact ones (T, 3) each.
 
     The head turns about the rods' root (about y, by beta(t) of _nod, the rods' angles
-    from the horizontal rising by beta), its poses fed every step; the exact is the
-    independent Lagrangian (scipy) with the base's angle and rate in the first joint
-    (hair_sim.bench.accuracy.articulated_chain_reference with `base`). motion_smoothing
-    is 0: the low-pass would be another base motion. Both relative to the root.
+    from the horizontal rising by beta), its poses fed every step; the exact is `ref`
+    (_nodding_chain_exact) at the same times. motion_smoothing is 0: the low-pass would
+    be another base motion. Both relative to the root.
     """
     from hair_sim.bench import accuracy
-    from hair_sim.physics.params import PhysicsParams
-    n, length, duration = 10, 0.03, 2.0
-    params = PhysicsParams().replaced(root_stiffness_scale=root_stiffness_scale,
-                                      motion_smoothing=0.0)
-    base = _nod(amplitude, frequency)
-    ref = accuracy.articulated_chain_reference(n, length, duration, params, base=base,
-                                               hanging=True)
+    n, length, duration = NOD['n'], NOD['length'], NOD['duration']
+    base = _nod(NOD['amplitude'], NOD['frequency'])
     root = np.array([0.0, 0.0, 1.0])
     rest = np.array([root + [0, 0, -length * j] for j in range(n + 1)])[None]
     sim = accuracy._bare(rest, 'articulated', '-', root_stiffness_scale=root_stiffness_scale,
@@ -1002,10 +1020,11 @@ def test_a_chain_on_a_nodding_head_follows_the_lagrangian_of_its_base_motion(
     order, the head's velocity and acceleration being estimated from its poses; 2.9 and
     3.1 mm at 1/60 s). The nod moves the exact tips by over 2 cm (asserted).
     """
-    tips, exact = _nodding_chain_tips(DEFAULT_DT, root_stiffness_scale)
+    ref = _nodding_chain_exact(root_stiffness_scale)
+    tips, exact = _nodding_chain_tips(DEFAULT_DT, root_stiffness_scale, ref)
     at_default = hanging.rms(tips, exact)
     assert at_default < 1e-3, at_default
-    fine, exact_fine = _nodding_chain_tips(1.0 / 1000, root_stiffness_scale)
+    fine, exact_fine = _nodding_chain_tips(1.0 / 1000, root_stiffness_scale, ref)
     assert hanging.rms(fine, exact_fine) < 0.4 * at_default
     assert np.linalg.norm(exact - [0.0, 0.0, -0.3], axis=1).max() > 0.02
 
