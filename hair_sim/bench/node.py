@@ -164,7 +164,11 @@ def load_gap(workdir, duration=6.0):
             end = time.monotonic() + 1.0
             while time.monotonic() < end:
                 ex.spin_once(timeout_sec=0.01)
-            t = [m for m, *_ in probe.arrivals[('/', 'hair_state')] if m >= t0]
+            # from the last message before the call to the window's end (a stall that
+            # began with the call is then a gap, not hidden before the first message after)
+            arrivals = [m for m, *_ in probe.arrivals[('/', 'hair_state')]]
+            t = [m for m in arrivals if m < t0][-1:] + [m for m in arrivals if m >= t0] + \
+                [time.monotonic()]
             gaps.append({'style': name, 'strips': strips if name == 'largest' else 46,
                          'success': future.result().success, 'answer_s': answered,
                          'longest_gap_ms': 1e3 * max(b - a for a, b in zip(t, t[1:]))})

@@ -57,6 +57,7 @@ class Probe:
         self.poses = defaultdict(list)        # ns -> [monotonic]
         self.diagnostics = defaultdict(list)  # ns -> [(stamp, {key: value})]
         self.recording = False
+        self.window = None                    # (start, end) monotonic of the recording
         self.seen = set()                     # (ns, topic) that delivered a message at all
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         for ns in namespaces:
@@ -96,6 +97,20 @@ class Probe:
             stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
             self.diagnostics[ns].append((stamp, values))
 
+    def _longest_gap_ms(self, arrivals):
+        """
+        Return the longest time (ms) in the window with no arrival, its edges included.
+
+        Between arrivals only, a stall that began as the window opened went unseen: a
+        probe started just before a gale's onset saw 53-68 ms where the node had stopped
+        publishing for 222-326 ms, its window's first message the one after the stall
+        (2026-11-30).
+        """
+        if self.window is None:
+            return float(1e3 * np.diff(arrivals).max()) if len(arrivals) > 2 else None
+        start, end = self.window
+        return float(1e3 * np.diff([start] + list(arrivals) + [end]).max())
+
     def report(self, namespaces, window):
         """Return per namespace: topic rates and latencies, poses, accepted share."""
         out = {}
@@ -111,8 +126,7 @@ class Probe:
                     'latency_ms_p95': float(np.percentile(lat, 95)) if lat else None,
                     'latency_ms_max': float(np.max(lat)) if lat else None,
                     'bytes_mean': float(np.mean([n for *_, n in a])) if a else None,
-                    'gap_ms_max': float(1e3 * np.diff([m for m, *_ in a]).max())
-                    if len(a) > 2 else None}
+                    'gap_ms_max': self._longest_gap_ms([m for m, *_ in a])}
             poses = self.poses.get(ns, [])
             rec['poses_sent_hz'] = (len(poses) - 1) / (poses[-1] - poses[0]) \
                 if len(poses) > 2 else 0.0
@@ -224,6 +238,7 @@ def measure(namespaces, duration, warmup=2.0, meshcat_url=None, context=None, to
         while time.monotonic() < end:
             ex.spin_once(timeout_sec=0.05)
         probe.recording = True
+        probe.window = (time.monotonic(), None)
         if watcher is not None:
             watcher.recording = True
         print('hair_sim.bench.probe: recording', file=sys.stderr, flush=True)
@@ -231,6 +246,7 @@ def measure(namespaces, duration, warmup=2.0, meshcat_url=None, context=None, to
         while time.monotonic() < end:
             ex.spin_once(timeout_sec=0.05)
         probe.recording = False
+        probe.window = (probe.window[0], time.monotonic())
         report = probe.report(namespaces, duration)
         report['connect_s'] = connect_s
         # topics that never delivered a message (no node, a wrong namespace, a topic off)
