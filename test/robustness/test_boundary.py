@@ -489,7 +489,11 @@ def test_12_a_gale_the_solver_cannot_keep_up_with_does_not_stop_publishing(live)
     hair_state came at 0.7 Hz from another process and head poses went unread. The solver
     now gets its share of the wall time (max_physics_share) and the simulated time beyond
     it is dropped, counted and said in the log. Once the gale has passed, no more time is
-    dropped: the hair runs in real time again.
+    dropped: the hair runs in real time again. The probe's window opens before the wind
+    starts, so the onset is in it: there the hair outruns its first step, and the step
+    taken again stopped the outputs for 271 ms in this test until retries were cut to the
+    bound too (80-104 ms since; 2026-11-30, a machine running 2.5x slow). The 500 ms bound
+    is the floor "publishing does not stop", not that measurement.
     """
     from hair_sim_msgs.msg import Wind
     assert live.load('thesis_long').success
@@ -501,10 +505,12 @@ def test_12_a_gale_the_solver_cannot_keep_up_with_does_not_stop_publishing(live)
     w = Wind()
     w.velocity.x, w.velocity.y, w.turbulence, w.seed = 40.0, 5.0, 1.0, 3
     try:
+        probe = ProbeProcess(4.0)                         # from another process
         pub.publish(w)
-        time.sleep(1.0)
-        hz = probe_rates(3.0)['/']['hair_state']              # from another process
-        assert hz >= 24.0, (hz, live.node.output()[-2000:])
+        got = probe.report()['/']['hair_state']
+        assert got['rate_hz'] >= 24.0, (got, live.node.output()[-2000:])
+        assert got['gap_ms_max'] < 500.0, 'publishing stopped for %.0f ms in the gale' % (
+            got['gap_ms_max'])
         assert wait_for(lambda: int(live.values().get('physics_over_share', 0)) > over, 5.0)
         assert 'simulated time dropped' in live.node.output()
         w.velocity.x, w.velocity.y, w.turbulence = 0.0, 0.0, 0.0
