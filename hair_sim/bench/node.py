@@ -46,17 +46,12 @@ def _probe(namespaces, duration, warmup, topics, meshcat_url=None, recording=Fal
         '--duration', str(duration), '--warmup', str(warmup), '--topics'] + topics
     if meshcat_url:
         cmd += ['--meshcat-url', meshcat_url]
-    if not recording:
-        return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                                text=True)
-    with tempfile.TemporaryFile('w+') as err:
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err, text=True)
-        end = time.monotonic() + 120.0
-        while proc.poll() is None and time.monotonic() < end:
-            err.seek(0)
-            if 'recording' in err.read():
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True,
+                            stderr=subprocess.PIPE if recording else subprocess.DEVNULL)
+    if recording:
+        for line in proc.stderr:            # (the rest is read with stdout, communicate())
+            if 'recording' in line:
                 break
-            time.sleep(0.02)
     return proc
 
 

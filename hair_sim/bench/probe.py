@@ -57,7 +57,7 @@ class Probe:
         self.poses = defaultdict(list)        # ns -> [monotonic]
         self.diagnostics = defaultdict(list)  # ns -> [(stamp, {key: value})]
         self.recording = False
-        self.window = None                    # (start, end) monotonic of the recording
+        self.window = None                    # (start, end) monotonic, once recorded
         self.seen = set()                     # (ns, topic) that delivered a message at all
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         for ns in namespaces:
@@ -106,8 +106,6 @@ class Probe:
         publishing for 222-326 ms, its window's first message the one after the stall
         (2026-11-30).
         """
-        if self.window is None:
-            return float(1e3 * np.diff(arrivals).max()) if len(arrivals) > 2 else None
         start, end = self.window
         return float(1e3 * np.diff([start] + list(arrivals) + [end]).max())
 
@@ -238,7 +236,7 @@ def measure(namespaces, duration, warmup=2.0, meshcat_url=None, context=None, to
         while time.monotonic() < end:
             ex.spin_once(timeout_sec=0.05)
         probe.recording = True
-        probe.window = (time.monotonic(), None)
+        opened = time.monotonic()
         if watcher is not None:
             watcher.recording = True
         print('hair_sim.bench.probe: recording', file=sys.stderr, flush=True)
@@ -246,7 +244,7 @@ def measure(namespaces, duration, warmup=2.0, meshcat_url=None, context=None, to
         while time.monotonic() < end:
             ex.spin_once(timeout_sec=0.05)
         probe.recording = False
-        probe.window = (probe.window[0], time.monotonic())
+        probe.window = (opened, time.monotonic())
         report = probe.report(namespaces, duration)
         report['connect_s'] = connect_s
         # topics that never delivered a message (no node, a wrong namespace, a topic off)
