@@ -1,6 +1,8 @@
 """Atomic file writes: a temporary file in the same directory, fsync, rename, fsync the dir."""
 
+import errno
 import os
+import stat
 import tempfile
 
 
@@ -40,10 +42,33 @@ def write_atomic(path, data, mode=0o644):
     return path
 
 
+def read_regular_file(path, max_bytes):
+    """
+    Return the first max_bytes + 1 bytes of the regular file at `path` (more: too large).
+
+    The file is opened without waiting and checked on its open descriptor: a FIFO, whose
+    open and read wait for a writer for ever, or a device is refused with an OSError ("not
+    a regular file"), also one put in place of a file that a check by name accepted.
+    """
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(errno.EINVAL, 'not a regular file', path)
+        os.set_blocking(fd, True)
+        with os.fdopen(fd, 'rb') as f:
+            fd = None
+            return f.read(max_bytes + 1)
+    finally:
+        if fd is not None:
+            os.close(fd)
+
+
 def unwritable_file(path):
-    """Return why a file cannot be written at `path` (a folder there, or no such folder)."""
+    """Return why a file cannot be written at `path` (a folder or a FIFO there, no folder)."""
     if os.path.isdir(path):
         return '%s is a directory, not a file to write' % path
+    if os.path.exists(path) and not os.path.isfile(path):
+        return '%s is not a regular file (a FIFO or a device)' % path
     folder = os.path.dirname(os.path.abspath(path))
     if not (os.path.isdir(folder) and os.access(folder, os.W_OK | os.X_OK)):
         return 'cannot write into %s' % folder

@@ -10,7 +10,7 @@ import struct
 
 import numpy as np
 
-from hair_sim.fileio import write_atomic
+from hair_sim.fileio import read_regular_file, write_atomic
 
 MAGIC = 0x46546C67          # 'glTF'
 JSON_CHUNK = 0x4E4F534A
@@ -53,8 +53,7 @@ def write_glb(path, vertices, triangles):
 
 def read_glb(path):
     """Return (vertices (n, 3) float64, triangles (m, 3) int64) of a GLB written as above."""
-    with open(path, 'rb') as f:
-        data = f.read(MAX_BYTES + 1)
+    data = read_regular_file(path, MAX_BYTES)
     if len(data) > MAX_BYTES:
         raise GlbError('larger than %d MiB' % (MAX_BYTES >> 20))
     try:

@@ -37,11 +37,21 @@ class HeadModel:
     path: str = ''
 
     def display_mesh(self):
-        """Return (vertices (n, 3), triangles (m, 3)) of the head's display mesh, or None."""
+        """
+        Return (vertices (n, 3), triangles (m, 3)) of the head's display mesh, or None.
+
+        The mesh is a file in the head file's own directory: a symlink leading out of it is
+        refused (ValueError), as the hairstyle directories refuse one, and so is anything
+        but a regular file (OSError; a FIFO would stall its reader for ever).
+        """
         if not self.mesh:
             return None
-        from hair_sim.modeling.glb import read_glb
-        return read_glb(os.path.join(os.path.dirname(os.path.abspath(self.path)), self.mesh))
+        from hair_sim.modeling.glb import GlbError, read_glb
+        folder = os.path.dirname(os.path.realpath(self.path))
+        real = os.path.realpath(os.path.join(folder, self.mesh))
+        if os.path.dirname(real) != folder:
+            raise GlbError('%s leads out of %s (symlink)' % (self.mesh, folder))
+        return read_glb(real)
 
     @property
     def collision(self):

@@ -5,6 +5,7 @@ Files come from users and pipelines, so nothing is built before it is checked. T
 walks libyaml's event stream (C parser) and builds plain Python values itself:
 
 - files over MAX_FILE_BYTES are refused before they are read;
+- anything but a regular file (a FIFO, a device) is refused when opened, without waiting;
 - aliases share the anchored value (nothing is copied), and the size the document would
   have with every alias expanded is counted as it streams: past MAX_NODES (an alias bomb)
   it is refused, as are aliases to an enclosing node, explicit tags (nothing is constructed
@@ -22,7 +23,7 @@ import re
 
 import yaml
 
-from hair_sim.fileio import write_atomic
+from hair_sim.fileio import read_regular_file, write_atomic
 from hair_sim.modeling.errors import HairstyleError
 
 # The largest shipped style is 14 KB; a style at the vertex budget needs under 200 KB.
@@ -187,8 +188,7 @@ def read_yaml(path, what):
         raise HairstyleError('%s: %d bytes is over the %d byte limit'
                              % (label, size, MAX_FILE_BYTES))
     try:
-        with open(path, 'rb') as f:
-            raw = f.read(MAX_FILE_BYTES + 1)
+        raw = read_regular_file(path, MAX_FILE_BYTES)
         text = raw.decode('utf-8')
     except OSError as exc:
         raise HairstyleError('%s: cannot read it (%s)' % (label, exc.strerror)) from None

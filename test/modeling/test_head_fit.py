@@ -234,7 +234,9 @@ def test_reroot_refuses_to_overwrite_and_names_the_reason(fitted, capsys):
     assert head_tool(['reroot', path, str(folder / 'avatar.yaml'), '--out', str(out),
                       '--force']) == 0
     assert out.read_bytes() == first            # the same input gives the same file
-    for where, why in ((folder, 'is a directory'), (folder / 'none' / 'x.yaml', 'cannot write')):
+    os.mkfifo(folder / 'pipe.yaml')
+    for where, why in ((folder, 'is a directory'), (folder / 'none' / 'x.yaml', 'cannot write'),
+                       (folder / 'pipe.yaml', 'not a regular file')):
         assert head_tool(['reroot', path, str(folder / 'avatar.yaml'), '--out', str(where),
                           '--force']) == 2
         err = capsys.readouterr().err

@@ -1,6 +1,8 @@
 """The shipped head mesh: where it sits against the spheres, and what the GLB reader refuses."""
 
+import os
 import struct
+import threading
 
 import numpy as np
 import pytest
@@ -8,6 +10,7 @@ import pytest
 from hair_sim import load_head, paths
 from hair_sim.modeling.errors import HairstyleError
 from hair_sim.modeling.glb import GlbError, read_glb, write_glb
+from hair_sim.modeling.yamlio import read_yaml
 
 
 @pytest.fixture(scope='module')
@@ -65,3 +68,58 @@ def test_a_head_file_names_only_a_glb_next_to_it(tmp_path, mesh):
     f.write_text(text)
     with pytest.raises(HairstyleError, match='mesh'):
         load_head(str(f))
+
+
+def _read_within(read, fifo, seconds=10.0):
+    """Return what read() raised; fail if it still waits after `seconds` (a FIFO's open)."""
+    box = {}
+
+    def run():
+        try:
+            box['value'] = read()
+        except Exception as exc:                     # noqa: B902
+            box['error'] = exc
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    thread.join(seconds)
+    if thread.is_alive():
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))    # let it go: end of file
+        thread.join(5.0)
+        pytest.fail('still waiting for a writer after %.0f s' % seconds)
+    return box.get('error')
+
+
+def test_a_fifo_a_device_or_a_symlink_out_is_refused_at_once(tmp_path):
+    """A head's mesh or file that is no regular file here is refused without waiting."""
+    text = open(paths.shipped_head('default_adult')).read()
+    shipped = os.path.join(os.path.dirname(paths.shipped_head('default_adult')),
+                           'default_adult_head.glb')
+    outside = tmp_path / 'outside'
+    outside.mkdir()
+    (outside / 'real.glb').write_bytes(open(shipped, 'rb').read())
+    heads = tmp_path / 'heads'
+    heads.mkdir()
+    fifo = heads / 'fifo.glb'
+    os.mkfifo(fifo)
+    os.symlink('/dev/zero', heads / 'device.glb')
+    os.symlink(fifo, heads / 'to_fifo.glb')
+    os.symlink(outside / 'real.glb', heads / 'out.glb')
+    os.symlink(outside / 'real.glb', outside / 'in.glb')
+    expected = {'fifo.glb': 'not a regular file', 'to_fifo.glb': 'not a regular file',
+                'device.glb': 'leads out of', 'out.glb': 'leads out of'}
+    for mesh, fragment in expected.items():
+        f = heads / (mesh + '.yaml')
+        f.write_text(text.replace('default_adult_head.glb', mesh))
+        head = load_head(str(f))
+        error = _read_within(head.display_mesh, fifo)
+        assert isinstance(error, (OSError, GlbError)) and fragment in str(error), (mesh, error)
+    # a symlink within the folder is a file there
+    f = outside / 'h.yaml'
+    f.write_text(text.replace('default_adult_head.glb', 'in.glb'))
+    v, t = load_head(str(f)).display_mesh()
+    assert len(t) > 5000
+    # the head (or style) file itself: a FIFO in its place, after a check by name passed
+    os.mkfifo(tmp_path / 'h.yaml')
+    error = _read_within(lambda: read_yaml(str(tmp_path / 'h.yaml'), 'head'),
+                         tmp_path / 'h.yaml')
+    assert isinstance(error, HairstyleError) and 'not a regular file' in str(error), error

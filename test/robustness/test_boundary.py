@@ -527,3 +527,50 @@ def test_12_a_gale_the_solver_cannot_keep_up_with_does_not_stop_publishing(live)
         res = live.client.set_parameters(NODE, {'physics.model': 'anjyo', 'sim_rate': 240.0})
         assert all(r.successful for r in res), [r.reason for r in res]
     assert np.all(np.isfinite(np.asarray(live.states[-1][1].positions)))
+
+
+# 13 --------------------------------------------------------------------------------
+def test_13_a_head_mesh_that_is_no_file_here_is_drawn_as_spheres_and_nothing_waits(live):
+    """
+    A style's head whose display mesh is a FIFO, a device or a symlink out of its folder.
+
+    The node reads the display mesh on its publishing thread (for head_markers) after the
+    load. A FIFO there made that thread wait for a writer for ever: nothing more was
+    published (hair_state stopped for the rest of a 12 s window) and in this test the
+    load's own answer never came (2026-11-30). Each is now refused when opened, counted
+    and said in the log, and the spheres are drawn.
+    """
+    heads = live.tmp / 'heads'
+    heads.mkdir(exist_ok=True)
+    outside = live.tmp.parent / ('outside_mesh_%s' % live.tmp.name)
+    outside.mkdir(exist_ok=True)
+    shipped_mesh = os.path.join(os.path.dirname(paths.shipped_head('default_adult')),
+                                HEAD['mesh'])
+    (outside / 'real.glb').write_bytes(open(shipped_mesh, 'rb').read())
+    os.mkfifo(heads / 'fifo.glb')
+    os.symlink('/dev/zero', heads / 'device.glb')
+    os.symlink(outside / 'real.glb', heads / 'out.glb')
+    os.symlink(heads / 'fifo.glb', heads / 'to_fifo.glb')
+    try:
+        for i, mesh in enumerate(('fifo.glb', 'device.glb', 'out.glb', 'to_fifo.glb')):
+            unreadable = int(live.values().get('head_mesh_unreadable', 0))
+            (heads / ('mesh%d.yaml' % i)).write_text(yaml.safe_dump(dict(
+                HEAD, name='mesh%d' % i, mesh=mesh)))
+            name = live.write('mesh%d_style.yaml' % i, style_with(
+                lambda d: d.__setitem__('head', 'mesh%d' % i)))
+            probe = ProbeProcess(2.0)                     # from another process
+            r = live.load(name)
+            assert r.success, r.message
+            got = probe.report()['/']['hair_state']
+            assert got['messages'] > 40 and got['gap_ms_max'] < 500.0, (mesh, got)
+            assert wait_for(lambda: int(live.values().get(
+                'head_mesh_unreadable', 0)) > unreadable, 5.0), mesh
+        out = live.node.output()
+        assert 'not a regular file' in out and 'leads out of' in out, out[-2000:]
+    finally:
+        # a reader the old code left waiting on the FIFO gets its end of file
+        try:
+            os.close(os.open(heads / 'fifo.glb', os.O_WRONLY | os.O_NONBLOCK))
+        except OSError:
+            pass
+    assert live.load('bob_fringe').success
