@@ -4,7 +4,8 @@ A pipeline's view of running hair_sim nodes, from a separate process.
 Subscribes raw (CDR bytes, nothing deserialized) to each node's hair topics and measures
 what really arrives: sustained rates, and pose -> hair latency from the stamps (a message
 carries the stamp of the head pose it was computed for; latency = arrival wall time minus
-that stamp). It also counts the head poses a driver sends, reads the nodes' /diagnostics
+that stamp; a node run with use_sim_time stamps with its simulated clock, so the latency
+is then not a latency). It also counts the head poses a driver sends, reads the nodes' /diagnostics
 (accepted poses, CPU-free counters), and can connect to a meshcat server as a browser
 would (a websocket client) to count the hair frames it forwards.
 
@@ -55,7 +56,7 @@ class Probe:
         self.node = node
         self.arrivals = defaultdict(list)     # (ns, topic) -> [(monotonic, wall, stamp, bytes)]
         self.poses = defaultdict(list)        # ns -> [monotonic]
-        self.diagnostics = defaultdict(list)  # ns -> [(stamp, {key: value})]
+        self.diagnostics = defaultdict(list)  # ns -> [(monotonic, {key: value})]
         self.recording = False
         self.window = None                    # (start, end) monotonic, once recorded
         self.seen = set()                     # (ns, topic) that delivered a message at all
@@ -94,8 +95,9 @@ class Probe:
             fqn = st.name[len('hair_sim: '):]
             ns = fqn.rsplit('/', 1)[0] or '/'
             values = {kv.key: kv.value for kv in st.values}
-            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-            self.diagnostics[ns].append((stamp, values))
+            # timed by arrival, not by its stamp: a node with use_sim_time stamps it with
+            # the simulated clock (a bag's --clock, which can loop back)
+            self.diagnostics[ns].append((time.monotonic(), values))
 
     def _longest_gap_ms(self, arrivals):
         """
