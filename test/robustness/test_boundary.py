@@ -574,3 +574,43 @@ def test_13_a_head_mesh_that_is_no_file_here_is_drawn_as_spheres_and_nothing_wai
         except OSError:
             pass
     assert live.load('bob_fringe').success
+
+
+# 14 --------------------------------------------------------------------------------
+def test_14_a_simulated_clock_that_loops_back_re_anchors_and_publishing_goes_on(live):
+    """
+    use_sim_time under a /clock that jumps back 60 s, as a looping bag's --clock does.
+
+    The node's timers and stepping then run on the simulated clock: it must keep its rate
+    across the jump, re-anchor the pose clock and follow the head again.
+    """
+    from hair_sim_msgs.msg import HairState
+    assert live.load('thesis_long').success
+    jumps = int(live.values().get('pose_clock_jump', 0))
+    res = live.client.set_parameters(NODE, {'use_sim_time': True})
+    assert res[0].successful, res[0].reason
+    seen = len(live.diag)
+    try:
+        proc = subprocess.Popen([sys.executable, os.path.join(
+            HERE, 'helpers', 'looping_clock.py'), '60', '2.5', '4.5', '-0.2', 'clock'],
+            env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE, text=True)
+        try:
+            probe = ProbeProcess(4.0)                     # from another process
+            got = probe.report()['/']['hair_state']
+            states = live.client.record(HairState, 'hair_state')
+            assert 'done' in proc.communicate(timeout=60)[0]
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        assert got['rate_hz'] >= 24.0 and got['gap_ms_max'] < 500.0, got
+        assert int(live.values().get('pose_clock_jump', 0)) > jumps
+        # the node ran on the simulated clock: it stamped its diagnostics 60 s back
+        assert any(m.header.stamp.sec < time.time() - 30.0 for _, m in live.diag[seen:])
+        roots = np.asarray(states[-1][1].positions).reshape(-1, 10, 3)[:, 0]
+        from hair_sim.modeling.strips import build_strips
+        rest = build_strips(load_hairstyle(paths.shipped_style('thesis_long'))).rest[:, 0]
+        assert np.abs(roots - rest - [-0.2, 0.0, 0.0]).max() < 1e-3, 'the hair did not follow'
+    finally:
+        res = live.client.set_parameters(NODE, {'use_sim_time': False})
+        assert res[0].successful, res[0].reason
+    live.assert_healthy()
