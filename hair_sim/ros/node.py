@@ -191,6 +191,7 @@ class HairSimNode(Node):
         self._credit = PHYSICS_CREDIT     # the solver's wall-time credit (s)
         self._credit_wall = None          # perf_counter() when it was last earned
         self._over_share_seen = 0         # physics_over_share at the last diagnostics
+        self._namesakes = 0               # other nodes in the graph with this node's name
         self._segment_costs = deque(maxlen=SEGMENT_COST_WINDOW)   # s per segment-substep
         self._last_drop = None            # perf_counter() of the last frame that dropped time
         self._last_step = (0.0, 0)        # wall s and substeps of the last step taken
@@ -883,6 +884,11 @@ class HairSimNode(Node):
         if self.errors:
             st.level = DiagnosticStatus.WARN
             st.message += '; %d unexpected error(s) caught' % sum(self.errors.values())
+        namesakes = self._count_namesakes()
+        values['nodes_with_this_name'] = str(namesakes + 1)
+        if namesakes:
+            st.level = DiagnosticStatus.WARN
+            st.message += '; %d other node(s) named %s' % (namesakes, fqn)
         if not np.all(np.isfinite(sim.pos)):
             st.level = DiagnosticStatus.ERROR
             st.message = 'non-finite state'
@@ -891,6 +897,30 @@ class HairSimNode(Node):
         arr.header.stamp = self.get_clock().now().to_msg()
         arr.status = [st]
         self.pub_diag.publish(arr)
+
+    def _count_namesakes(self):
+        """
+        Return how many other nodes in the graph share this node's name; say when it changes.
+
+        A second `make demo` (or node) started without a namespace of its own is named
+        /hair_sim too: each node then takes both trackers' poses (refused as out of
+        order every few seconds) and both publish on the same topics, where a renderer
+        sees two heads of hair in turn. ROS starts such a node without a word.
+        """
+        name, ns = self.get_name(), self.get_namespace()
+        n = sum(1 for other in self.get_node_names_and_namespaces() if other == (name, ns)) - 1
+        n = max(n, 0)
+        fqn = self.get_fully_qualified_name()
+        if n > self._namesakes:
+            self.get_logger().warning(
+                '%s in the graph: its topics and poses mix with this node\'s (give each '
+                'node its own namespace: --ros-args -r __ns:=/alice)'
+                % ('another node named %s' % fqn if n == 1 else
+                   '%d other nodes named %s' % (n, fqn)))
+        elif n < self._namesakes:
+            self.get_logger().info('%d other node(s) named %s left in the graph' % (n, fqn))
+        self._namesakes = n
+        return n
 
     # -------------------------------------------------------------- meshcat
     def _meshcat_rate(self):

@@ -612,3 +612,22 @@ def test_14_a_simulated_clock_that_loops_back_re_anchors_and_publishing_goes_on(
         res = live.client.set_parameters(NODE, {'use_sim_time': False})
         assert res[0].successful, res[0].reason
     live.assert_healthy()
+
+
+# 15 --------------------------------------------------------------------------------
+def test_15_a_second_node_of_the_same_name_is_said(live):
+    """
+    Another node named /hair_sim (a second `make demo` without a namespace) is warned of.
+
+    ROS starts it without a word, and the two nodes then mix their topics and poses.
+    """
+    import rclpy
+    impostor = rclpy.create_node('hair_sim', context=live.client.context)
+    try:
+        assert wait_for(lambda: live.values().get('nodes_with_this_name') == '2', 15.0), \
+            live.values().get('nodes_with_this_name')
+        assert 'another node named /hair_sim in the graph' in live.node.output()
+    finally:
+        impostor.destroy_node()
+    assert wait_for(lambda: live.values().get('nodes_with_this_name') == '1', 15.0)
+    assert '0 other node(s) named /hair_sim left' in live.node.output()
