@@ -588,14 +588,16 @@ def test_14_a_simulated_clock_that_loops_back_re_anchors_and_publishing_goes_on(
     res = live.client.set_parameters(NODE, {'use_sim_time': True})
     assert res[0].successful, res[0].reason
     seen = len(live.diag)
+    # recorded from before the clock starts: once it stops, so does the node (its time
+    # stands still), and a subscription made late may get nothing
+    states = live.client.record(HairState, 'hair_state')
     try:
         proc = subprocess.Popen([sys.executable, os.path.join(
-            HERE, 'helpers', 'looping_clock.py'), '60', '2.5', '4.5', '-0.2', 'clock'],
+            HERE, 'helpers', 'looping_clock.py'), '60', '2.5', '6.5', '-0.2', 'clock'],
             env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE, text=True)
         try:
             probe = ProbeProcess(4.0)                     # from another process
             got = probe.report()['/']['hair_state']
-            states = live.client.record(HairState, 'hair_state')
             assert 'done' in proc.communicate(timeout=60)[0]
         finally:
             if proc.poll() is None:
