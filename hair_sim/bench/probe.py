@@ -5,9 +5,9 @@ Subscribes raw (CDR bytes, nothing deserialized) to each node's hair topics and 
 what really arrives: sustained rates, and pose -> hair latency from the stamps (a message
 carries the stamp of the head pose it was computed for; latency = arrival wall time minus
 that stamp; a node run with use_sim_time stamps with its simulated clock, so the latency
-is then not a latency). It also counts the head poses a driver sends, reads the nodes' /diagnostics
-(accepted poses, CPU-free counters), and can connect to a meshcat server as a browser
-would (a websocket client) to count the hair frames it forwards.
+is then not a latency). It also counts the head poses a driver sends, reads the nodes'
+/diagnostics (accepted poses, CPU-free counters), and can connect to a meshcat server as a
+browser would (a websocket client) to count the hair frames it forwards.
 
     python -m hair_sim.bench.probe --namespaces /a /b --duration 10 [--meshcat-url URL]
 

@@ -913,7 +913,7 @@ class HairSimNode(Node):
         fqn = self.get_fully_qualified_name()
         if n > self._namesakes:
             self.get_logger().warning(
-                '%s in the graph: its topics and poses mix with this node\'s (give each '
+                '%s in the graph: the topics and poses of the same names mix (give each '
                 'node its own namespace: --ros-args -r __ns:=/alice)'
                 % ('another node named %s' % fqn if n == 1 else
                    '%d other nodes named %s' % (n, fqn)))
