@@ -12,7 +12,7 @@ metres):
   `back_z` at `back_x` to `front_z` at `front_x`; the region is the scalp above it.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import os
 
 import numpy as np
@@ -35,6 +35,8 @@ class HeadModel:
     hairline: dict
     mesh: str = ''                     # optional display mesh (file name next to the head file)
     path: str = ''
+    # the display mesh as first read: ((vertices, triangles) or None, the error or None)
+    _display: tuple = field(default=None, init=False, repr=False, compare=False)
 
     def display_mesh(self):
         """
@@ -42,8 +44,22 @@ class HeadModel:
 
         The mesh is a file in the head file's own directory: a symlink leading out of it is
         refused (ValueError), as the hairstyle directories refuse one, and so is anything
-        but a regular file (OSError; a FIFO would stall its reader for ever).
+        but a regular file (OSError; a FIFO would stall its reader for ever). It is read
+        once (load once, display per frame): later calls return the same read-only arrays,
+        or raise the same error, without touching the disk. The node reads it where it
+        builds a scene, so its publishing thread never does.
         """
+        if self._display is None:
+            try:
+                self._display = (self._read_display_mesh(), None)
+            except (OSError, ValueError) as exc:           # GlbError is a ValueError
+                self._display = (None, exc)
+        mesh, error = self._display
+        if error is not None:
+            raise error
+        return mesh
+
+    def _read_display_mesh(self):
         if not self.mesh:
             return None
         from hair_sim.modeling.glb import GlbError, read_glb
@@ -51,7 +67,10 @@ class HeadModel:
         real = os.path.realpath(os.path.join(folder, self.mesh))
         if os.path.dirname(real) != folder:
             raise GlbError('%s leads out of %s (symlink)' % (self.mesh, folder))
-        return read_glb(real)
+        vertices, triangles = read_glb(real)
+        vertices.flags.writeable = False
+        triangles.flags.writeable = False
+        return vertices, triangles
 
     @property
     def collision(self):

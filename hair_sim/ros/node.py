@@ -181,6 +181,7 @@ class HairSimNode(Node):
             sim.plan_step(1.0 / self._p('sim_rate'))
         except ValueError as exc:
             raise ValueError('physics parameters refused: %s' % exc) from None
+        _read_display_mesh(style.head)
         self.scene = Scene(1, sim, HairRenderer.for_simulator(sim))
         self._committed = 0               # seq of the last build job swapped in
         self._encoder = None
@@ -454,6 +455,7 @@ class HairSimNode(Node):
         except ValueError as exc:
             raise HairstyleError('%s: %s' % (style.name, exc)) from None
         renderer = HairRenderer.for_simulator(sim)
+        _read_display_mesh(style.head)
         return sim, renderer, '%s %s (%d strips)' % (verb, style.name, style.n_strips)
 
     def _submit(self, kind, fn, future):
@@ -1000,6 +1002,19 @@ def check_own_arguments(argv):
             prog='hair_sim_node', description=__doc__.strip().splitlines()[0],
             epilog=parameter_help(), formatter_class=argparse.RawDescriptionHelpFormatter)
         parser.parse_args(own)
+
+
+def _read_display_mesh(head):
+    """
+    Read the head's display mesh where a scene is built (it is read once: HeadModel).
+
+    The publishing thread then draws it from memory. A mesh that cannot be read is said
+    where it would be drawn (head_markers, the meshcat sink), and the spheres are drawn.
+    """
+    try:
+        head.display_mesh()
+    except (OSError, ValueError):
+        pass
 
 
 def main(args=None):

@@ -123,3 +123,29 @@ def test_a_fifo_a_device_or_a_symlink_out_is_refused_at_once(tmp_path):
     error = _read_within(lambda: read_yaml(str(tmp_path / 'h.yaml'), 'head'),
                          tmp_path / 'h.yaml')
     assert isinstance(error, HairstyleError) and 'not a regular file' in str(error), error
+
+
+def test_the_display_mesh_is_read_once_and_shared_read_only(monkeypatch, tmp_path):
+    """Load once, display per frame: one read per head, its error kept as well."""
+    from hair_sim.modeling import glb
+    reads = []
+    read_glb = glb.read_glb
+
+    def counting(path):
+        reads.append(path)
+        return read_glb(path)
+    monkeypatch.setattr(glb, 'read_glb', counting)
+    head = load_head(paths.shipped_head('default_adult'))
+    first, again = head.display_mesh(), head.display_mesh()
+    assert len(reads) == 1 and first[0] is again[0] and first[1] is again[1]
+    with pytest.raises(ValueError):
+        first[0][0, 0] = 1.0                      # shared: nobody may change it
+    assert load_head(paths.shipped_head('default_adult')).display_mesh() is not first
+    assert len(reads) == 2                        # a head loaded again reads its file again
+    text = open(paths.shipped_head('default_adult')).read()
+    (tmp_path / 'h.yaml').write_text(text.replace('default_adult_head.glb', 'gone.glb'))
+    broken = load_head(str(tmp_path / 'h.yaml'))
+    for _ in range(2):
+        with pytest.raises(OSError):
+            broken.display_mesh()
+    assert len(reads) == 3

@@ -306,3 +306,34 @@ def test_requests_queued_while_the_node_is_held_up_are_all_answered(node_env):
     assert all(a.success for a in answers[1::2])                  # the resets
     assert all(a.success or 'busy' in a.message for a in answers[0::2]), answers[:4]
     assert node.sim.style.name in ('bob_fringe', 'thesis_short')
+
+
+def test_the_head_mesh_is_read_where_the_scene_is_built_not_on_the_publishing_thread(
+        node_env, tmp_path, monkeypatch):
+    """A load reads its head's display mesh on the builder's thread; publishing draws it."""
+    import shutil
+    import threading
+    from hair_sim.modeling import glb
+    from hair_sim_msgs.srv import LoadHairstyle
+    _, ex, node, client = node_env
+    shipped = paths.shipped_head('default_adult')
+    (tmp_path / 'heads').mkdir()
+    shutil.copy(shipped, tmp_path / 'heads' / 'copy.yaml')
+    shutil.copy(os.path.join(os.path.dirname(shipped), 'default_adult_head.glb'),
+                tmp_path / 'heads')
+    style = open(paths.shipped_style('bob_fringe')).read()
+    (tmp_path / 'on_copy.yaml').write_text(style.replace('head: default_adult', 'head: copy'))
+    threads = []
+    read_glb = glb.read_glb
+
+    def recording(path):
+        threads.append(threading.current_thread().name)
+        return read_glb(path)
+    monkeypatch.setattr(glb, 'read_glb', recording)
+    r = call(ex, client, LoadHairstyle, '/hair_sim/load_hairstyle',
+             LoadHairstyle.Request(path='on_copy'))
+    assert r.success, r.message
+    copy = os.path.realpath(tmp_path / 'heads' / 'copy.yaml')
+    assert spin_until(ex, lambda: (node._head_source or ('',))[0] == copy, 10.0)
+    assert node._head_mesh is not None and len(node._head_mesh[1]) > 5000
+    assert threads == ['scene_builder'], threads
