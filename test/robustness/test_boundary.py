@@ -534,11 +534,12 @@ def test_13_a_head_mesh_that_is_no_file_here_is_drawn_as_spheres_and_nothing_wai
     """
     A style's head whose display mesh is a FIFO, or a symlink out of its folder.
 
-    The node reads the display mesh on its publishing thread (for head_markers) after the
+    The node read the display mesh on its publishing thread (for head_markers) after the
     load. A FIFO there made that thread wait for a writer for ever: nothing more was
     published (hair_state stopped for the rest of a 12 s window) and in this test the
-    load's own answer never came (2026-11-30). Each is now refused when opened, counted
-    and said in the log, and the spheres are drawn.
+    load's own answer never came (2026-11-30). Each is now refused when opened (on the
+    builder's thread, where the mesh is now read), counted and said in the log, and the
+    spheres are drawn.
     """
     heads = live.tmp / 'heads'
     heads.mkdir(exist_ok=True)
