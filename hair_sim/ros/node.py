@@ -910,8 +910,8 @@ class HairSimNode(Node):
         sees two heads of hair in turn. ROS starts such a node without a word.
         """
         name, ns = self.get_name(), self.get_namespace()
-        n = sum(1 for other in self.get_node_names_and_namespaces() if other == (name, ns)) - 1
-        n = max(n, 0)
+        n = max(0, sum(1 for other in self.get_node_names_and_namespaces()
+                       if other == (name, ns)) - 1)
         fqn = self.get_fully_qualified_name()
         if n > self._namesakes:
             self.get_logger().warning(
