@@ -16,24 +16,28 @@ bridge's scene tree, as a page that just opened is. So a slow page skips the fra
 not take and shows the newest, and the server holds at most about MAX_BACKLOG, one scene
 and the missed deletes per page. Pages that keep up get every command, as before.
 
-Run as `python hair_sim/sinks/meshcat_server.py [--zmq-url URL]` (a file, so that the server
-does not import the hair_sim package: 52 MB instead of 115-176 MB). It prints its zmq_url
-and web_url lines as meshcat's server does, and a line starting with LOG_PREFIX when a page
-falls behind or catches up (meshcat_sink.start_server passes those to the node's log).
+Run as `python hair_sim/sinks/meshcat_server.py [--zmq-url URL] [--parent-pid PID]` (a file,
+so that the server does not import the hair_sim package: 52 MB instead of 115-176 MB). It
+prints its zmq_url and web_url lines as meshcat's server does, and a line starting with
+LOG_PREFIX when a page falls behind or catches up (meshcat_sink.start_server passes those to
+the node's log). With --parent-pid it stops once that process has ended.
 """
 
 import argparse
 import functools
+import os
 import sys
 import weakref
 
 from meshcat.servers.tree import find_node, walk
 from meshcat.servers.zmqserver import ZMQWebSocketBridge
+from tornado.ioloop import PeriodicCallback
 from tornado.websocket import WebSocketClosedError
 import umsgpack
 
 MAX_BACKLOG = 2 ** 20         # bytes; a thesis_long frame is about 0.33 MB, its scene 0.53
 LOG_PREFIX = 'hair_sim:'
+PARENT_CHECK_PERIOD_MS = 500
 
 
 class _Page:
@@ -170,6 +174,11 @@ def latest_per_property(properties):
     return list(last.values())
 
 
+def _stop_when_orphaned(parent_pid):
+    if os.getppid() != parent_pid:       # nothing reads our stdout any more: say nothing
+        sys.exit(0)
+
+
 def main(argv=None):
     """Serve the meshcat page and take zmq commands until killed."""
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
@@ -177,10 +186,19 @@ def main(argv=None):
                         help='zmq address to bind (default: the first free from tcp 6000)')
     parser.add_argument('--max-backlog', type=int, default=MAX_BACKLOG,
                         help='bytes a page may be behind before it skips frames')
+    parser.add_argument('--parent-pid', type=int, default=None,
+                        help='stop when this process is no longer our parent (it ended)')
     args = parser.parse_args(argv)
     bridge = BoundedBridge(zmq_url=args.zmq_url, max_backlog=args.max_backlog)
     print('zmq_url=%s' % bridge.zmq_url, flush=True)
     print('web_url=%s' % bridge.web_url, flush=True)
+    if args.parent_pid is not None:
+        # The server runs in a session of its own (a Ctrl-C in the node's terminal does not
+        # reach it), so the node stops it. A node killed (kill -9, or SIGHUP when its
+        # terminal closed) could not: its server was left holding port 7000, and showing
+        # the last frame there, for ever. Orphaned, the server is re-parented, and stops.
+        PeriodicCallback(functools.partial(_stop_when_orphaned, args.parent_pid),
+                         PARENT_CHECK_PERIOD_MS).start()
     try:
         bridge.run()
     except KeyboardInterrupt:

@@ -61,7 +61,8 @@ def start_server(on_log=None, meshcats_own=False):
     if given, takes the lines it prints about pages falling behind.
     """
     env = dict(os.environ)
-    server = ['-m', 'meshcat.servers.zmqserver'] if meshcats_own else [SERVER_SCRIPT]
+    server = (['-m', 'meshcat.servers.zmqserver'] if meshcats_own
+              else [SERVER_SCRIPT, '--parent-pid', str(os.getpid())])
     proc = subprocess.Popen([sys.executable, '-u'] + server,
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env,
                             start_new_session=True)

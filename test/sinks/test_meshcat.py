@@ -237,31 +237,58 @@ def test_camera_looks_from_the_named_view(view, axis):
     assert 0.0 < world[2] < 0.2                      # a little above the head's centre
 
 
-@pytest.mark.parametrize('ending', ['return', 'error'])
+def _running(pid):
+    """True while process pid runs (an orphan that ended may stay a zombie of pid 1)."""
+    try:
+        with open('/proc/%d/stat' % pid) as f:
+            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.parametrize('ending', ['return', 'error', 'SIGKILL', 'SIGHUP'])
 def test_a_program_that_ends_without_stopping_the_sink_leaves_no_server(ending):
     """
     The meshcat server runs in its own session: only its program can stop it.
 
     A program that ends without MeshcatSink.stop (an error, or a Ctrl-C while the node is
-    still being built) must not leave it holding its port for the next demo to miss.
+    still being built), or is killed (kill -9; SIGHUP when its terminal closes, which
+    ends Python without its atexit hooks) must not leave it holding its port for the next
+    demo to miss: the server stops once its program has gone.
     """
     import re
+    import signal
     import socket
     script = ('from hair_sim.sinks.meshcat_sink import start_server\n'
               'proc, zmq_url, web_url = start_server()\n'
               'print(web_url, proc.pid, flush=True)\n'
-              + ('raise RuntimeError("the node failed while being built")\n'
-                 if ending == 'error' else ''))
-    out = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
-                         timeout=60)
-    m = re.search(r'http://127\.0\.0\.1:(\d+)\S* (\d+)', out.stdout)
-    assert m, out.stdout + out.stderr
-    assert (out.returncode != 0) == (ending == 'error'), out.stderr
-    port, pid = int(m.group(1)), int(m.group(2))
+              + {'return': '',
+                 'error': 'raise RuntimeError("the node failed while being built")\n',
+                 'SIGKILL': 'import time\ntime.sleep(60)\n',
+                 'SIGHUP': 'import time\ntime.sleep(60)\n'}[ending])
+    program = subprocess.Popen([sys.executable, '-c', script], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        line = program.stdout.readline()
+        m = re.search(r'http://127\.0\.0\.1:(\d+)\S* (\d+)', line)
+        assert m, line + (program.stderr.read() if program.poll() is not None else '')
+        port, pid = int(m.group(1)), int(m.group(2))
+        if ending.startswith('SIG'):
+            assert _running(pid)
+            program.send_signal(getattr(signal, ending))
+        returncode = program.wait(timeout=30)
+    finally:
+        if program.poll() is None:
+            program.kill()
+            program.wait()
+    if ending == 'return':
+        assert returncode == 0, program.stderr.read()
+    else:
+        assert returncode != 0
     deadline = time.monotonic() + 5.0
-    while os.path.exists('/proc/%d' % pid) and time.monotonic() < deadline:
+    while _running(pid) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert not os.path.exists('/proc/%d' % pid), 'the server %d outlived its program' % pid
+    assert not _running(pid), 'the server %d outlived its program (%s)' % (pid, ending)
     probe = socket.socket()
     try:
         assert probe.connect_ex(('127.0.0.1', port)) != 0, 'a server still on %d' % port
