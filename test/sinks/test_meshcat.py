@@ -238,7 +238,7 @@ def test_camera_looks_from_the_named_view(view, axis):
 
 
 def _running(pid):
-    """True while process pid runs (an orphan that ended may stay a zombie of pid 1)."""
+    """Return whether process pid runs (an orphan that ended may stay a zombie of pid 1)."""
     try:
         with open('/proc/%d/stat' % pid) as f:
             return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
