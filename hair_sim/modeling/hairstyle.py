@@ -455,7 +455,17 @@ def load_hairstyle(path, search_dirs=None):
 
 
 def save_hairstyle(style, path):
-    """Write `style` to `path` atomically (temporary file, fsync, rename)."""
+    """
+    Write `style` to `path` atomically (temporary file, fsync, rename).
+
+    A write that fails (a full disk, a folder without write permission) raises an OSError
+    with its errno that names the path and says that the file there is as it was.
+    """
     validate(style)
-    write_yaml_atomic(path, style.to_dict())
+    try:
+        write_yaml_atomic(path, style.to_dict())
+    except OSError as exc:
+        left = 'the file there is unchanged' if os.path.exists(path) else 'nothing written'
+        raise OSError(exc.errno, 'could not write %s: %s; %s'
+                      % (path, exc.strerror or exc, left)) from exc
     return path

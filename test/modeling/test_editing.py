@@ -78,15 +78,18 @@ def test_failed_save_leaves_old_file_intact(style, tmp_path, monkeypatch):
 
     monkeypatch.setattr(yamlio.os, 'fsync', boom)
     edited = style.with_control_point(0, 0, 3, [0.0, 0.0, 0.15])
-    with pytest.raises(OSError):
+    with pytest.raises(OSError) as err:
         save_hairstyle(edited, path)
+    assert err.value.errno == 28
+    assert str(err.value).endswith(
+        'could not write %s: No space left on device; the file there is unchanged' % path)
     assert open(path, 'rb').read() == before
     assert os.listdir(tmp_path) == ['keep.yaml']
 
 
 def test_save_into_missing_directory_fails_cleanly(style, tmp_path):
     """Saving where no directory exists raises and writes nothing."""
-    with pytest.raises(OSError):
+    with pytest.raises(OSError, match='could not write .*x.yaml: .*; nothing written'):
         save_hairstyle(style, str(tmp_path / 'nope' / 'x.yaml'))
     assert os.listdir(tmp_path) == []
 
