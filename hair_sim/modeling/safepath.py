@@ -20,18 +20,31 @@ def resolve_style_path(request, dirs, must_exist):
     Return the real path of `request` inside one of `dirs`, or raise HairstyleError.
 
     A request is a name ('thesis_long'), a relative path ('mine/long.yaml') or an absolute
-    path inside a configured directory. '..' components, other absolute paths, symlinks
-    leading out of their directory and names not ending in .yaml are refused. A name that
-    exists in a directory resolves there (the first such); a new file for a save goes to the
-    first configured directory that is not the shipped one (the shipped one if alone).
+    path inside a configured directory; .yaml is added to a name without it. '..'
+    components, other absolute paths, symlinks leading out of their directory, control
+    characters and file names that start with a dot (a path ending in '/') or are longer
+    than 255 bytes are refused. A name that exists in a directory resolves there (the first
+    such); a new file for a save goes to the first configured directory that is not the
+    shipped one (the shipped one if alone).
     """
     if not isinstance(request, str) or not request.strip():
         raise HairstyleError('empty hairstyle path')
     if '\x00' in request or len(request) > 4096:
         raise HairstyleError('malformed hairstyle path')
     req = request.strip()
+    if any(c < ' ' or c == '\x7f' for c in req):
+        raise HairstyleError('path %r: control characters (a newline, a tab) are not allowed'
+                             % request[:100])
     if not req.endswith('.yaml'):
         req += '.yaml'
+    name = os.path.basename(req.replace('\\', '/'))
+    if name.startswith('.'):
+        # 'sub/' was saved as sub/.yaml and '.' as ..yaml: hidden files nobody asked for,
+        # named as write_atomic's temporary files (.NAME.xxx.tmp) are
+        raise HairstyleError('path %r: no file name (a hairstyle is NAME.yaml, NAME not '
+                             'starting with a dot)' % request)
+    if len(name.encode('utf-8', 'surrogatepass')) > 255:
+        raise HairstyleError('path %r: its file name is longer than 255 bytes' % request[:100])
     if '..' in req.replace('\\', '/').split('/'):
         raise HairstyleError('path %r: ".." is not allowed' % request)
     roots = allowed_dirs(dirs)
