@@ -15,6 +15,7 @@ import sys
 from geometry_msgs.msg import PoseStamped
 from hair_sim_msgs.msg import Wind
 import rclpy
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
@@ -22,6 +23,7 @@ from rclpy.utilities import remove_ros_args
 
 from hair_sim.arguments import rate_hz
 from hair_sim.bench.scenarios import demo as demo_motion, demo_gust, GUST_PERIOD
+from hair_sim.ros.clock_step import ClockStepWaker
 
 
 class HeadDriver(Node):
@@ -33,17 +35,24 @@ class HeadDriver(Node):
         self.parent_pid = parent_pid
         self.pose_pub = self.create_publisher(PoseStamped, 'head_pose', qos_profile_sensor_data)
         self.wind_pub = self.create_publisher(Wind, 'wind', 10)
-        self.t0 = self.get_clock().now().nanoseconds * 1e-9
+        # Paced on a steady clock unless on sim time (as hair_sim_node is): timers on the
+        # system clock stopped for as long as the clock stepped back; the poses are
+        # stamped with the ROS clock, as a tracker's are.
+        pacing = self.get_clock() if self.get_parameter('use_sim_time').value else \
+            Clock(clock_type=ClockType.STEADY_TIME)
+        self._pacing = pacing
+        self.t0 = pacing.now().nanoseconds * 1e-9
         self.sent = 0
-        self.create_timer(1.0 / rate, self._pose)
-        self.create_timer(GUST_PERIOD, self._wind)
+        self.create_timer(1.0 / rate, self._pose, clock=pacing)
+        self.create_timer(GUST_PERIOD, self._wind, clock=pacing)
+        self.clock_steps = ClockStepWaker(self)
         self._gust = 0
 
     def _pose(self):
         if self.parent_pid is not None and os.getppid() != self.parent_pid:
             raise SystemExit(0)                 # the demo that started us is gone
         now = self.get_clock().now()
-        t = now.nanoseconds * 1e-9 - self.t0
+        t = self._pacing.now().nanoseconds * 1e-9 - self.t0
         p, q = demo_motion(t)
         msg = PoseStamped()
         msg.header.stamp = now.to_msg()

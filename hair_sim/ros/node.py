@@ -35,6 +35,7 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
                                 SetParametersResult)
 import rclpy
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -54,6 +55,7 @@ from hair_sim.modeling.strips import build_strips
 from hair_sim.physics.params import PhysicsParams
 from hair_sim.physics.simulator import HairSimulator, SimulationDiverged, stability_problem
 from hair_sim.render.mesh import HairRenderer
+from hair_sim.ros.clock_step import ClockStepWaker
 from hair_sim.ros.params import all_parameters, PHYSICS
 from hair_sim.ros.pose_lead import PoseLead
 from hair_sim.ros.scene import Scene, SceneBuilder
@@ -155,7 +157,7 @@ class HairSimNode(Node):
         self.counts = Counter({'poses': 0, 'wrong_frame': 0, 'wind': 0, 'wind_rejected': 0,
                                'wind_clamped': 0, 'params_refused': 0, 'overruns': 0,
                                'physics_over_share': 0, 'published': 0,
-                               'markers_published': 0})
+                               'markers_published': 0, 'system_clock_steps': 0})
         self.refused = Counter()          # refused inputs by kind (in /diagnostics)
         self.errors = Counter()           # unexpected errors caught, by callback
         self._validated = None            # (parameters, derived values) from on_set
@@ -238,16 +240,58 @@ class HairSimNode(Node):
         self.add_pre_set_parameters_callback(self._as_declared_types)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
-        self.frame_timer = self.create_timer(1.0 / self._p('frame_rate'), self._on_frame)
-        self.publish_timer = self.create_timer(1.0 / self._p('publish_rate'), self._on_publish)
+        self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
+        self._timers = []
+        self._make_timers(self.get_parameter('use_sim_time').value)
+        self._clock_steps = ClockStepWaker(self, on_step=self._on_clock_step)
         self._markers_due = 0.0            # markers go out from the publish tick when due
-        self.create_timer(1.0, self._on_diagnostics)
         if self._p('meshcat.enabled'):
             self._start_meshcat()
         strips = sim.strips
         self.get_logger().info('hair_sim: %s, %d strips, %d strands x %d vertices'
                                % (style.name, strips.n_strips, strips.n_strands,
                                   strips.n_vertices))
+
+    def _make_timers(self, sim_time):
+        """
+        (Re)create the frame, publish and diagnostics timers on the node's pacing clock.
+
+        The pacing clock is the ROS clock under use_sim_time (a bag's /clock paces the
+        node), and a steady clock otherwise. Without sim time the ROS clock is the system
+        clock, and rcl times its timers on it: a step of the system clock back (an NTP
+        correction, `date -s`, a VM resumed) stopped every timer for as long as the step
+        (60 s back: no hair_state for 60 s, 2026-11-30), and a step ahead was stepped as
+        simulated time. The stepping measures elapsed time on the same clock; stamps stay
+        on the ROS clock, where the head poses' are.
+        """
+        for timer in self._timers:
+            self.destroy_timer(timer)
+        self._pacing_clock = self.get_clock() if sim_time else self._steady_clock
+        clock = self._pacing_clock
+        self.frame_timer = self.create_timer(1.0 / self._p('frame_rate'), self._on_frame,
+                                             clock=clock)
+        self.publish_timer = self.create_timer(1.0 / self._p('publish_rate'),
+                                               self._on_publish, clock=clock)
+        self._timers = [self.frame_timer, self.publish_timer,
+                        self.create_timer(1.0, self._on_diagnostics, clock=clock)]
+        self._clock_last = None           # the elapsed time starts again on this clock
+        slewed, self.pose_lead = self.pose_lead.slewed, PoseLead()
+        self.pose_lead.slewed = slewed
+
+    def _on_clock_step(self, step):
+        """Executor thread: the system clock stepped by `step` s (ClockStepWaker woke us)."""
+        self.counts['system_clock_steps'] += 1
+        self.get_logger().warning(
+            'the system clock stepped %+.3f s (counted in system_clock_steps); the node '
+            'paces itself on %s, and head poses re-anchor on their stamps'
+            % (step, 'the simulated clock' if self._on_sim_time() else 'a steady clock'),
+            throttle_duration_sec=5.0)
+
+    def _on_sim_time(self):
+        return self._pacing_clock is not self._steady_clock
+
+    def _pacing_now(self):
+        return self._pacing_clock.now().nanoseconds * 1e-9
 
     # -------------------------------------------------------------- state
     @property
@@ -398,6 +442,9 @@ class HairSimNode(Node):
     @guarded('parameters')
     def _apply_parameters(self, params):
         """post_set: apply a set that on_set accepted (all of it)."""
+        for p in params:
+            if p.name == 'use_sim_time' and bool(p.value) != self._on_sim_time():
+                self._make_timers(bool(p.value))
         changed = {p.name: p.value for p in params if p.name in self._specs}
         validated = self._validated
         self._validated = None
@@ -608,7 +655,7 @@ class HairSimNode(Node):
         motion = self.sim.motion
         if self._clock_last is None or motion.offset is None:
             return                        # the simulator's clock has not started
-        now = self.get_clock().now().nanoseconds * 1e-9
+        now = self._pacing_now()
         # the simulator's clock now: its time, the part of a step owed, the time since
         # the last frame
         sim_now = self.sim.time + self._acc + max(0.0, now - self._clock_last)
@@ -653,7 +700,7 @@ class HairSimNode(Node):
         so that a costly step (the articulated model in a gale) slows the hair, not the
         outputs and the callbacks.
         """
-        now = self.get_clock().now().nanoseconds * 1e-9
+        now = self._pacing_now()
         if self._clock_last is None:
             self._clock_last = now
             return
@@ -867,7 +914,7 @@ class HairSimNode(Node):
         values['pose_clock_slewed_ms'] = '%.1f' % (1e3 * self.pose_lead.slewed)
         if self._segment_costs:
             values['segment_substep_us'] = '%.3f' % (1e6 * np.median(self._segment_costs))
-        least = self.pose_lead.least(self.get_clock().now().nanoseconds * 1e-9)
+        least = self.pose_lead.least(self._pacing_now())
         if least is not None:
             values['pose_lead_ms_min'] = '%.1f' % (1e3 * least)
         if self.latency_ms:
@@ -943,6 +990,7 @@ class HairSimNode(Node):
 
     def destroy_node(self):
         """Stop the workers, then destroy the node."""
+        self._clock_steps.stop()
         if self.meshcat is not None:
             self.meshcat.stop()
             self.meshcat = None
