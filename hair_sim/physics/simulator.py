@@ -498,9 +498,9 @@ class HairSimulator:
         head's motion is followed as it was up to there, the pose clock then moves on, and
         time_dropped counts it. Each substep keeps its length, so stability is unchanged.
         """
-        h = _step_length(dt)
+        dt = _step_length(dt)
         t0 = _time.perf_counter()
-        h = self._affordable(h)
+        h = self._affordable(dt)
         dropped = self.time_dropped
         t = self.time + h
         self.counters['steps'] += 1
@@ -1051,10 +1051,11 @@ def _step_length(dt):
     Return dt as a float; raise ValueError unless it is a step, in (0, MAX_DT] s.
 
     (set_params' step_dt and plan_step took NaN, 0 and -1: every later stability check
-    then passed, as nothing compares true with NaN.)
+    then passed, as nothing compares true with NaN. A string is no step either: step('0.1')
+    stepped 0.1 s and then raised a TypeError, the state changed by a call that failed.)
     """
     try:
-        h = float(dt)
+        h = math.nan if isinstance(dt, (str, bytes, bytearray)) else float(dt)
     except (TypeError, ValueError):
         h = math.nan
     if not (math.isfinite(h) and 0.0 < h <= MAX_DT):

@@ -154,17 +154,22 @@ def test_params_and_step_change_together_or_not_at_all(long_style):
     assert sim.stability_dt == 1 / 480 and sim.params.damping == 8.0
 
 
-@pytest.mark.parametrize('dt', [float('nan'), float('inf'), 0.0, -1.0 / 60, 0.5, 'fast'])
+@pytest.mark.parametrize('dt', [float('nan'), float('inf'), 0.0, -1.0 / 60, 0.5, 'fast',
+                                '0.01', b'0.01'])
 def test_a_step_that_is_no_step_is_refused_and_the_checks_stay_on(long_style, dt):
     # (before: set_params(step_dt=nan) and plan_step(nan) were accepted, and every later
-    # stability check then passed, as nothing compares true with NaN)
+    # stability check then passed, as nothing compares true with NaN; step('0.01') stepped
+    # and then raised a TypeError)
     sim = HairSimulator(long_style, integrator='explicit')
+    before = sim.strand_positions().copy()
     with pytest.raises(ValueError, match='dt must be'):
         sim.set_params(step_dt=dt, damping=8.0)
     with pytest.raises(ValueError, match='dt must be'):
         sim.plan_step(dt)
     with pytest.raises(ValueError, match='dt must be'):
         sim.step(dt)
+    assert sim.time == 0.0 and sim.counters['steps'] == 0
+    np.testing.assert_array_equal(sim.strand_positions(), before)
     assert sim.stability_dt == DEFAULT_DT and sim.params.damping == 12.0
     # explicit eq. 6 at stiffness 60 is unstable at the default step: still refused
     assert stability_problem(sim.params.replaced(stiffness_scale=60.0), sim, DEFAULT_DT)
