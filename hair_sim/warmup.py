@@ -85,11 +85,12 @@ def main():
     from rclpy.parameter import Parameter
 
     from hair_sim.ros.node import HairSimNode
+    from hair_sim.ros.ros_init import init_ros
 
     start = time.perf_counter()
     os.environ['ROS_DOMAIN_ID'] = str(random.Random(os.getpid()).randint(100, 200))
     context = Context()
-    rclpy.init(context=context, args=['--ros-args', '-p', 'meshcat.enabled:=false'])
+    init_ros(['hair_sim_warmup', '--ros-args', '-p', 'meshcat.enabled:=false'], context=context)
     node = None
     try:
         node = HairSimNode(context=context)

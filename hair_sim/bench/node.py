@@ -125,6 +125,8 @@ def load_gap(workdir, duration=6.0):
     from hair_sim.bench.probe import Probe
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
+
+    from hair_sim.ros.ros_init import init_ros
     from hair_sim_msgs.srv import LoadHairstyle
     data = yaml.safe_load(open(paths.shipped_style('thesis_long')))
     strips = 46
@@ -137,7 +139,7 @@ def load_gap(workdir, duration=6.0):
     node = subprocess.Popen([os.path.join(BIN, 'hair_sim_node'), '--ros-args', '--params-file',
                              params, '-p', 'hairstyle_dirs:=["", "%s"]' % workdir],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    rclpy.init()
+    init_ros()
     client = rclpy.create_node('hair_sim_bench_loader')
     probe = Probe(client, ['/'], ['hair_state'])
     ex = SingleThreadedExecutor()
@@ -191,6 +193,8 @@ def gale(duration=10.0, speed=40.0, turbulence=1.0):
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
+
+    from hair_sim.ros.ros_init import init_ros
     from hair_sim_msgs.msg import Wind
     node = subprocess.Popen(_node_cmd('/', False) + ['-p', 'physics.model:=articulated',
                                                      '-p', 'sim_rate:=60.0'],
@@ -198,7 +202,7 @@ def gale(duration=10.0, speed=40.0, turbulence=1.0):
     driver = subprocess.Popen([os.path.join(BIN, 'hair_sim_head_driver'), '--ros-args',
                                '-r', 'wind:=driver_wind'],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    rclpy.init()
+    init_ros()
     client = rclpy.create_node('hair_sim_bench_gale')
     ex = SingleThreadedExecutor()
     ex.add_node(client)

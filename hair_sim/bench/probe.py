@@ -266,6 +266,8 @@ def measure(namespaces, duration, warmup=2.0, meshcat_url=None, context=None, to
 def main(argv=None):
     """Measure and print one JSON object; exit 1 when a topic delivered no message at all."""
     import rclpy
+
+    from hair_sim.ros.ros_init import init_ros
     parser = argparse.ArgumentParser(prog='hair_sim.bench.probe', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--namespaces', nargs='+', default=['/'])
@@ -280,7 +282,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.duration <= 0.0:
         parser.error('--duration must be more than 0 s')
-    rclpy.init()
+    init_ros()
     try:
         report = measure(args.namespaces, args.duration, args.warmup, args.meshcat_url,
                          topics=args.topics, connect_timeout=args.connect_timeout)

@@ -21,6 +21,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
 from hair_sim.arguments import seconds
+from hair_sim.ros.ros_init import init_ros
 
 
 def split_ros_args(argv):
@@ -59,7 +60,7 @@ def main(argv=None):
                  '-p', 'meshcat.enabled:=%s' % ('false' if args.no_meshcat else 'true')]
     node_args += ros_args
     try:
-        rclpy.init(args=node_args)
+        init_ros(node_args)
     except RuntimeError as exc:     # rcl cannot parse them: a params file missing, not YAML
         print('hair_sim_demo: %s' % exc, file=sys.stderr)
         return 1

@@ -24,6 +24,7 @@ from rclpy.utilities import remove_ros_args
 from hair_sim.arguments import rate_hz
 from hair_sim.bench.scenarios import demo as demo_motion, demo_gust, GUST_PERIOD
 from hair_sim.ros.clock_step import ClockStepWaker
+from hair_sim.ros.ros_init import init_ros
 
 
 class HeadDriver(Node):
@@ -84,7 +85,7 @@ def main(argv=None):
     try:
         own = remove_ros_args(argv)[1:]
         args = parser.parse_args(own)
-        rclpy.init(args=argv)
+        init_ros(argv)
     except RuntimeError as exc:     # rcl cannot parse them: a params file missing, not YAML
         print('hair_sim_head_driver: %s' % exc, file=sys.stderr)
         return 1

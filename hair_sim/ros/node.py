@@ -57,6 +57,7 @@ from hair_sim.physics.simulator import HairSimulator, SimulationDiverged, stabil
 from hair_sim.render.mesh import HairRenderer
 from hair_sim.ros.clock_step import ClockStepWaker
 from hair_sim.ros.params import all_parameters, PHYSICS
+from hair_sim.ros.ros_init import init_ros
 from hair_sim.ros.pose_lead import PoseLead
 from hair_sim.ros.scene import Scene, SceneBuilder
 from hair_sim.sinks.markers import (delete_all_markers, head_marker_cdr, head_sphere_markers,
@@ -1068,7 +1069,7 @@ def _read_display_mesh(head):
 def main(args=None):
     """Run hair_sim_node until Ctrl-C or shutdown; bad input never ends it."""
     check_own_arguments(sys.argv if args is None else args)
-    rclpy.init(args=args)
+    init_ros(args)
     node = None
     try:
         node = HairSimNode()

@@ -681,3 +681,40 @@ def test_16_a_system_clock_stepped_back_stops_neither_the_node_nor_the_demo_driv
                     5.0), live.values().get('system_clock_steps')
     assert 'the system clock stepped -3.0' in live.node.output()
     live.assert_healthy()
+
+
+# 17 --------------------------------------------------------------------------------
+@pytest.mark.parametrize('program', ['hair_sim_node', 'hair_sim_head_driver'])
+def test_17_a_log_folder_ros_cannot_make_costs_the_log_files_only(tmp_path, program):
+    """
+    HOME where ~/.ros/log cannot be made (read-only, as under a service manager; /proc here).
+
+    rclpy.init raised "failed to initialize logging", and the node ended at start with a
+    traceback. It now starts without ROS's log files, says so in one line, and publishes.
+    """
+    env = {k: v for k, v in os.environ.items() if k not in ('ROS_LOG_DIR', 'ROS_HOME')}
+    env['HOME'] = '/proc'                      # not even root can make /proc/.ros
+    log = open(tmp_path / 'out.log', 'w')
+    proc = subprocess.Popen([os.path.join(os.path.dirname(sys.executable), program)],
+                            stdout=log, stderr=subprocess.STDOUT, env=env)
+    try:
+        topic = 'hair_state' if program == 'hair_sim_node' else 'head_pose'
+        if topic == 'hair_state':
+            assert probe_rates(2.0)['/']['hair_state'] >= 24.0
+        else:
+            from geometry_msgs.msg import PoseStamped
+            from rclpy.qos import qos_profile_sensor_data
+            client = Client('hair_sim_test_log_folder')
+            try:
+                poses = client.record(PoseStamped, 'head_pose', qos_profile_sensor_data)
+                assert wait_for(lambda: len(poses) > 50, 30.0), len(poses)
+            finally:
+                client.close()
+        assert proc.poll() is None
+    finally:
+        proc.terminate()
+        proc.wait(timeout=15)
+        log.close()
+    out = (tmp_path / 'out.log').read_text()
+    assert 'ROS log files are off' in out and 'ROS_LOG_DIR' in out, out[-2000:]
+    assert 'Traceback' not in out, out[-2000:]
