@@ -20,6 +20,22 @@ CHECK_PERIOD = 0.05      # s between looks at the two clocks
 STEP_THRESHOLD = 0.02    # s the system clock may move other than the monotonic one
 
 
+def _clocks_together(within, tries=5):
+    """
+    Return (system, monotonic) clock read within `within` s of each other, else None.
+
+    A thread held up between the two reads (the machine busy, another thread holding the
+    GIL) would see the difference as a step; such a read is tried again.
+    """
+    for _ in range(tries):
+        before = time.monotonic()
+        wall = time.time()
+        after = time.monotonic()
+        if after - before <= within:
+            return wall, 0.5 * (before + after)
+    return None
+
+
 class ClockStepWaker:
     """Trigger a guard condition of `node` whenever the system clock steps; count the steps."""
 
@@ -38,11 +54,16 @@ class ClockStepWaker:
         self._thread.start()
 
     def _watch(self):
-        wall0, mono0 = time.time(), time.monotonic()
+        wall0, mono0 = _clocks_together(self._threshold / 4) or (None, None)
         while not self._stop.wait(self._period):
-            wall, mono = time.time(), time.monotonic()
-            step = (wall - wall0) - (mono - mono0)
-            wall0, mono0 = wall, mono
+            read = _clocks_together(self._threshold / 4)
+            if read is None:
+                continue                  # the thread was held up between the reads
+            if wall0 is None:
+                wall0, mono0 = read
+                continue
+            step = (read[0] - wall0) - (read[1] - mono0)
+            wall0, mono0 = read
             if abs(step) > self._threshold:
                 with self._lock:
                     self.steps += 1
