@@ -57,8 +57,8 @@ from hair_sim.physics.simulator import HairSimulator, SimulationDiverged, stabil
 from hair_sim.render.mesh import HairRenderer
 from hair_sim.ros.clock_step import ClockStepWaker
 from hair_sim.ros.params import all_parameters, PHYSICS
-from hair_sim.ros.ros_init import init_ros
 from hair_sim.ros.pose_lead import PoseLead
+from hair_sim.ros.ros_init import init_ros
 from hair_sim.ros.scene import Scene, SceneBuilder
 from hair_sim.sinks.markers import (delete_all_markers, head_marker_cdr, head_sphere_markers,
                                     MarkerEncoder, MarkerLayout)
