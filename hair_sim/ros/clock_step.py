@@ -16,6 +16,8 @@ next wait times out on the clock as it now is.
 import threading
 import time
 
+from rclpy.exceptions import InvalidHandle
+
 CHECK_PERIOD = 0.05      # s between looks at the two clocks
 STEP_THRESHOLD = 0.02    # s the system clock may move other than the monotonic one
 
@@ -69,7 +71,10 @@ class ClockStepWaker:
                     self.steps += 1
                     self.last_step = step
                     self._pending.append(step)
-                self._guard.trigger()
+                try:
+                    self._guard.trigger()
+                except InvalidHandle:     # the node or its context went without stop()
+                    return
 
     def _woken(self):
         """Executor thread: the wait that was in flight has returned; say why."""

@@ -49,6 +49,11 @@ class HeadDriver(Node):
         self.clock_steps = ClockStepWaker(self)
         self._gust = 0
 
+    def destroy_node(self):
+        """Stop watching the system clock, then destroy the node."""
+        self.clock_steps.stop()
+        super().destroy_node()
+
     def _pose(self):
         if self.parent_pid is not None and os.getppid() != self.parent_pid:
             raise SystemExit(0)                 # the demo that started us is gone

@@ -88,3 +88,22 @@ def test_a_read_held_up_between_the_two_clocks_is_no_step(spun_node):
     finally:
         waker.stop()
     assert seen == [] and waker.steps == 0
+
+
+def test_a_node_destroyed_without_stop_ends_the_watch_quietly(monkeypatch):
+    """Check that a step after the node (and its context) went ends the thread, no raise."""
+    import rclpy
+    from rclpy.context import Context
+    clocks = SteppableClocks()
+    monkeypatch.setattr(clock_step, 'time', clocks)
+    context = Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node('clock_step_gone', context=context)
+    waker = clock_step.ClockStepWaker(node)
+    node.destroy_node()
+    rclpy.try_shutdown(context=context)
+    errors = []
+    monkeypatch.setattr(threading, 'excepthook', errors.append)
+    clocks.offset -= 60.0
+    waker._thread.join(timeout=2.0)
+    assert not waker._thread.is_alive() and errors == [] and waker.steps == 1
