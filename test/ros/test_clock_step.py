@@ -26,17 +26,23 @@ class SteppableClocks:
         return time.monotonic()
 
 
-@pytest.fixture
-def spun_node(monkeypatch):
-    """Yield (node, clocks) with the node spun on a thread and clock_step on fake clocks."""
+def node_on_fake_clocks(monkeypatch, name):
+    """Return (context, node, clocks): a node in its own context, clock_step on fake clocks."""
     import rclpy
     from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
     clocks = SteppableClocks()
     monkeypatch.setattr(clock_step, 'time', clocks)
     context = Context()
     rclpy.init(context=context)
-    node = rclpy.create_node('clock_step_test', context=context)
+    return context, rclpy.create_node(name, context=context), clocks
+
+
+@pytest.fixture
+def spun_node(monkeypatch):
+    """Yield (node, clocks) with the node spun on a thread and clock_step on fake clocks."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    context, node, clocks = node_on_fake_clocks(monkeypatch, 'clock_step_test')
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     thread = threading.Thread(target=executor.spin, daemon=True)
@@ -93,12 +99,7 @@ def test_a_read_held_up_between_the_two_clocks_is_no_step(spun_node):
 def test_a_node_destroyed_without_stop_ends_the_watch_quietly(monkeypatch):
     """Check that a step after the node (and its context) went ends the thread, no raise."""
     import rclpy
-    from rclpy.context import Context
-    clocks = SteppableClocks()
-    monkeypatch.setattr(clock_step, 'time', clocks)
-    context = Context()
-    rclpy.init(context=context)
-    node = rclpy.create_node('clock_step_gone', context=context)
+    context, node, clocks = node_on_fake_clocks(monkeypatch, 'clock_step_gone')
     waker = clock_step.ClockStepWaker(node)
     node.destroy_node()
     rclpy.try_shutdown(context=context)
