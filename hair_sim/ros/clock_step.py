@@ -43,7 +43,6 @@ class ClockStepWaker:
 
     def __init__(self, node, on_step=None, period=CHECK_PERIOD, threshold=STEP_THRESHOLD):
         self.steps = 0                    # steps seen
-        self.last_step = 0.0              # s the last one moved the system clock by
         self._period = period
         self._threshold = threshold
         self._on_step = on_step
@@ -69,7 +68,6 @@ class ClockStepWaker:
             if abs(step) > self._threshold:
                 with self._lock:
                     self.steps += 1
-                    self.last_step = step
                     self._pending.append(step)
                 try:
                     self._guard.trigger()

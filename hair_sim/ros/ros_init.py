@@ -17,14 +17,14 @@ import rclpy
 
 def init_ros(args=None, context=None):
     """
-    Call rclpy.init(args, context); return None, or why ROS's log files are off.
+    Call rclpy.init(args, context); when the log folder cannot be made, again without files.
 
     A failure other than the log folder's is raised as rclpy raised it (a RuntimeError:
     arguments rcl cannot parse, a params file missing).
     """
     try:
         rclpy.init(args=args, context=context)
-        return None
+        return
     except RuntimeError as exc:
         if 'failed to initialize logging' not in str(exc):
             raise
@@ -32,8 +32,7 @@ def init_ros(args=None, context=None):
     rclpy.try_shutdown(context=context)
     argv = list(sys.argv if args is None else args)
     rclpy.init(args=argv + ['--ros-args', '--disable-external-lib-logs'], context=context)
-    message = ('%s: ROS log files are off (%s); set ROS_LOG_DIR to a folder this user can '
-               'write to keep them; the console still gets every line'
-               % (os.path.basename(argv[0]) if argv else 'hair_sim', why))
-    print(message, file=sys.stderr, flush=True)
-    return message
+    print('%s: ROS log files are off (%s); set ROS_LOG_DIR to a folder this user can '
+          'write to keep them; the console still gets every line'
+          % (os.path.basename(argv[0]) if argv else 'hair_sim', why), file=sys.stderr,
+          flush=True)
