@@ -661,7 +661,7 @@ def test_16_a_system_clock_stepped_back_stops_neither_the_node_nor_the_demo_driv
         pytest.skip('this machine does not let its clock be stepped (%s)' % exc)
     steps = int(live.values().get('system_clock_steps', 0))
     driver = subprocess.Popen([sys.executable, '-m', 'hair_sim.ros.head_driver'],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         probe = ProbeProcess(3.0 * CLOCK_STEP, topics=('hair_state',))
         time.sleep(CLOCK_STEP)
