@@ -23,6 +23,8 @@ import math
 from numba import njit
 import numpy as np
 
+from hair_sim.physics.inputs import real_array, real_number
+
 TELEPORT_DISTANCE = 0.25     # m: smaller jumps are jitter, whatever their implied speed
 TELEPORT_ANGLE = 0.6         # rad
 MAX_GAP = 1.0                # s a sample may lag the simulator before re-anchoring
@@ -166,10 +168,10 @@ class HeadMotion:
     def add(self, stamp, position, quaternion, now):
         """Add a pose stamped `stamp` (s) while the simulator is at `now`; return a verdict."""
         try:
-            p = np.array(position, dtype=np.float64).reshape(3)
-            q = np.array(quaternion, dtype=np.float64).reshape(4)
-            stamp = float(stamp)
-        except (TypeError, ValueError):
+            p = real_array(position, 3, 'position')
+            q = real_array(quaternion, 4, 'quaternion')
+            stamp = real_number(stamp, 'stamp')
+        except ValueError:
             self.counts['invalid'] += 1
             return 'invalid'
         # checked on Python floats: numpy's reductions on 3 and 4 numbers (isfinite().all(),

@@ -16,6 +16,7 @@ import numpy as np
 from hair_sim.modeling.head import MAX_SPHERES
 from hair_sim.modeling.strips import build_strips
 from hair_sim.physics import forces as F
+from hair_sim.physics.inputs import index_array, integer, real_array, real_number
 from hair_sim.physics.motion import filter_head_motion, HeadMotion, quat_to_matrix
 from hair_sim.physics.multirate import multirate_substep
 from hair_sim.physics.params import PhysicsParams
@@ -27,6 +28,7 @@ from hair_sim.vecmath import vector_lengths
 DEFAULT_DT = 1.0 / 240.0       # s: 4 steps per 60 Hz frame (pendulum period within 1 %)
 SUBSTEPS_PER_60HZ_FRAME = int(round(1.0 / (60.0 * DEFAULT_DT)))
 MAX_DT = 0.1
+MIN_DT = 1e-6                  # s: 10x below the finest step any reference here takes
 MAX_REST_EXTENT = 100.0        # m: how far from the head's origin a bare strand may lie
 RETRY_SUBSTEP_FACTOR = 4       # a step that came out non-finite is taken again this much finer
 # A retry that comes out non-finite too is taken again, RETRY_SUBSTEP_FACTOR times finer
@@ -76,11 +78,7 @@ class HairSimulator:
         origin and shaped (at least 1, at least 2, 3), and each of pairs (inter-strip
         springs of type 1, (k, 2)) joins two different strands.
         """
-        try:
-            rest = np.array(rest, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError('rest strands must be numbers shaped (strands, vertices, 3)') \
-                from None
+        rest = real_array(rest, None, 'rest strands')
         if rest.ndim != 3 or rest.shape[0] < 1 or rest.shape[1] < 2 or rest.shape[2] != 3:
             raise ValueError('rest strands must be shaped (strands >= 1, vertices >= 2, 3), '
                              'not %s' % (rest.shape,))
@@ -90,10 +88,7 @@ class HairSimulator:
         if pairs is None:
             pairs = np.zeros((0, 2), np.int64)
         else:
-            try:
-                pairs = np.array(pairs, dtype=np.int64).reshape(-1, 2)
-            except (TypeError, ValueError):
-                raise ValueError('pairs must be (strand, strand) index pairs') from None
+            pairs = index_array(pairs, (-1, 2), 'pairs (strand, strand)')
             if len(pairs) and (pairs.min() < 0 or pairs.max() >= rest.shape[0]
                                or np.any(pairs[:, 0] == pairs[:, 1])):
                 raise ValueError('pairs must join two different strands of the %d'
@@ -306,10 +301,7 @@ class HairSimulator:
         finite and has no vector of zero (or unrepresentable) length.
         """
         shape = (self.pos.shape[0], self.pos.shape[1] - 1, 3)
-        try:
-            d = np.array(directions, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError('directions must be numbers shaped %s' % (shape,)) from None
+        d = real_array(directions, None, 'directions')
         if d.shape != shape:
             raise ValueError('directions must be shaped %s (strands, segments, xyz), not %s'
                              % (shape, d.shape))
@@ -345,14 +337,16 @@ class HairSimulator:
 
     def set_wind(self, velocity_xyz, turbulence=0.0, seed=0):
         """Set the wind (m/s, world frame); speeds above max_wind_speed are clamped."""
-        v = np.array(velocity_xyz, dtype=np.float64).reshape(3)
-        if not np.all(np.isfinite(v)) or not math.isfinite(float(turbulence)):
+        v = real_array(velocity_xyz, 3, 'wind velocity')
+        turbulence = real_number(turbulence, 'turbulence')
+        seed = integer(seed, 'seed')
+        if not np.all(np.isfinite(v)) or not math.isfinite(turbulence):
             raise ValueError('wind must be finite')
         speed = float(vector_lengths(v))
         clamped = speed > self.params.max_wind_speed
         if clamped:
             v *= self.params.max_wind_speed / speed
-        turbulence = min(max(float(turbulence), 0.0), 1.0)
+        turbulence = min(max(turbulence, 0.0), 1.0)
         old = (self.wind.velocity.copy(), self.wind.turbulence, self.wind.seed)
         self.wind.set(v, turbulence, seed)
         self.layout_version += 1
@@ -1048,16 +1042,18 @@ def stability_problem(params, sim, dt):
 
 def _step_length(dt):
     """
-    Return dt as a float; raise ValueError unless it is a step, in (0, MAX_DT] s.
+    Return dt as a float; raise ValueError unless it is a step, in [MIN_DT, MAX_DT] s.
 
     (set_params' step_dt and plan_step took NaN, 0 and -1: every later stability check
     then passed, as nothing compares true with NaN. A string is no step either: step('0.1')
-    stepped 0.1 s and then raised a TypeError, the state changed by a call that failed.)
+    stepped 0.1 s and then raised a TypeError, the state changed by a call that failed.
+    Steps of 1e-200 s and below put the thesis model's velocities, (x - x-) / h, out of
+    range: SimulationDiverged, and the hair put back at its rest shape.)
     """
     try:
         h = math.nan if isinstance(dt, (str, bytes, bytearray)) else float(dt)
     except (TypeError, ValueError):
         h = math.nan
-    if not (math.isfinite(h) and 0.0 < h <= MAX_DT):
-        raise ValueError('dt must be in (0, %g] s, not %r' % (MAX_DT, dt))
+    if not (math.isfinite(h) and MIN_DT <= h <= MAX_DT):
+        raise ValueError('dt must be in [%g, %g] s, not %r' % (MIN_DT, MAX_DT, dt))
     return h

@@ -3,6 +3,7 @@
 import numpy as np
 
 from hair_sim.physics.forces import WindField
+from hair_sim.physics.inputs import integer, real_array, real_number
 
 N_MODES = 8
 
@@ -15,13 +16,15 @@ class Wind:
 
     def set(self, velocity, turbulence=0.0, seed=0):
         """Set the mean velocity, turbulence intensity (>= 0) and seed of the gusts."""
-        v = np.array(velocity, dtype=np.float64).reshape(3)
-        turbulence = float(turbulence)
+        # all checked before anything is set: a bad seed left a new velocity behind
+        v = real_array(velocity, 3, 'wind velocity')
+        turbulence = real_number(turbulence, 'turbulence')
+        seed = integer(seed, 'seed')
         if not (np.all(np.isfinite(v)) and np.isfinite(turbulence)) or turbulence < 0:
             raise ValueError('wind needs a finite velocity and a finite turbulence >= 0')
         self.velocity = v
         self.turbulence = turbulence
-        self.seed = int(seed) & 0xFFFFFFFF
+        self.seed = seed & 0xFFFFFFFF
         rng = np.random.default_rng(self.seed)
         d = rng.normal(size=(N_MODES, 3))
         self.mode_dir = d / np.linalg.norm(d, axis=1, keepdims=True)
