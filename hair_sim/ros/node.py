@@ -60,6 +60,7 @@ from hair_sim.ros.params import all_parameters, PHYSICS
 from hair_sim.ros.pose_lead import PoseLead
 from hair_sim.ros.ros_init import init_ros
 from hair_sim.ros.scene import Scene, SceneBuilder
+from hair_sim.ros.sim_clock import SimClockWatch
 from hair_sim.sinks.markers import (delete_all_markers, head_marker_cdr, head_sphere_markers,
                                     MarkerEncoder, MarkerLayout)
 from hair_sim.sinks.meshcat_sink import CAMERA_VIEWS
@@ -273,8 +274,12 @@ class HairSimNode(Node):
                                              clock=clock)
         self.publish_timer = self.create_timer(1.0 / self._p('publish_rate'),
                                                self._on_publish, clock=clock)
+        # (the diagnostics describe the node, which runs in wall time: on a stopped /clock
+        # they go on, and say so)
         self._timers = [self.frame_timer, self.publish_timer,
-                        self.create_timer(1.0, self._on_diagnostics, clock=clock)]
+                        self.create_timer(1.0, self._on_diagnostics,
+                                          clock=self._steady_clock)]
+        self._sim_clock = SimClockWatch(self._steady_now()) if sim_time else None
         self._clock_last = None           # the elapsed time starts again on this clock
         slewed, self.pose_lead = self.pose_lead.slewed, PoseLead()
         self.pose_lead.slewed = slewed
@@ -290,6 +295,36 @@ class HairSimNode(Node):
 
     def _on_sim_time(self):
         return self._pacing_clock is not self._steady_clock
+
+    def _steady_now(self):
+        return self._steady_clock.now().nanoseconds * 1e-9
+
+    def _watch_sim_clock(self, st, values):
+        """Under use_sim_time: say when /clock stands still, or never came (see sim_clock)."""
+        watch = self._sim_clock
+        if watch is None:
+            return
+        now = self._steady_now()
+        was_still, never_ran = watch.still_for(now), watch.never_ran()
+        news = watch.note(self.get_clock().now().nanoseconds, now)
+        values['sim_clock_still_s'] = '%.1f' % watch.still_for(now)
+        values['sim_clock_stalls'] = str(watch.stalls)
+        if news == 'stopped' and watch.never_ran():
+            self.get_logger().warning(
+                'use_sim_time is true and no /clock has arrived in %.0f s: nothing is stepped '
+                'or published until one does (play a bag with --clock, start the simulator, '
+                'or set use_sim_time false)' % watch.still_for(now))
+        elif news == 'stopped':
+            self.get_logger().warning(
+                'the simulated clock (/clock) has not moved for %.0f s: the hair holds '
+                'still and nothing is published until it runs again' % watch.still_for(now))
+        elif news == 'resumed':
+            self.get_logger().info('the simulated clock (/clock) %s after %.1f s'
+                                   % ('arrived' if never_ran else 'runs again', was_still))
+        if watch.still:
+            st.level = DiagnosticStatus.WARN
+            st.message += ('; use_sim_time: no /clock yet' if watch.never_ran() else
+                           '; use_sim_time: /clock stopped %.0f s ago' % watch.still_for(now))
 
     def _pacing_now(self):
         return self._pacing_clock.now().nanoseconds * 1e-9
@@ -926,6 +961,7 @@ class HairSimNode(Node):
             values['meshcat_connected'] = str(self.meshcat.connected)
             values['meshcat_frames'] = str(self.meshcat.frames_sent)
             values['meshcat_url'] = self.meshcat_url or ''
+        self._watch_sim_clock(st, values)
         over = self.counts['physics_over_share']
         if over > self._over_share_seen:
             st.level = DiagnosticStatus.WARN

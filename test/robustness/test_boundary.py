@@ -718,3 +718,57 @@ def test_17_a_log_folder_ros_cannot_make_costs_the_log_files_only(tmp_path, prog
     out = (tmp_path / 'out.log').read_text()
     assert 'ROS log files are off' in out and 'ROS_LOG_DIR' in out, out[-2000:]
     assert 'Traceback' not in out, out[-2000:]
+
+
+# 18 --------------------------------------------------------------------------------
+def test_18_use_sim_time_with_no_clock_is_said_and_the_clock_s_start_too(live):
+    """
+    use_sim_time on, and no /clock (no bag playing, the simulator not started or gone).
+
+    The node then steps and publishes nothing, rightly: its time stands still. It did so
+    without a word and without a diagnostic (12 s tried from outside). Its diagnostics now
+    run on a steady clock: they go on, warn, and the log says why; a /clock that then runs
+    brings the hair back, and that is said too.
+    """
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from hair_sim_msgs.msg import HairState
+
+    def newest_status():
+        for _, msg in reversed(live.diag):
+            for st in msg.status:
+                if st.name == 'hair_sim: %s' % NODE:
+                    return st
+        return None
+
+    states = live.client.record(HairState, 'hair_state')
+    said = len(live.node.output())
+    res = live.client.set_parameters(NODE, {'use_sim_time': True})
+    assert res[0].successful, res[0].reason
+    try:
+        assert wait_for(lambda: float(live.values().get('sim_clock_still_s', 0)) >= 4.0,
+                        15.0), live.values()
+        st = newest_status()
+        assert st.level == DiagnosticStatus.WARN and 'use_sim_time' in st.message, st
+        out = live.node.output()[said:]
+        assert 'no /clock has arrived' in out or '(/clock) has not moved' in out, out
+        held = len(states)
+        time.sleep(1.5)
+        assert len(states) == held, 'published on a clock that stands still'
+        proc = subprocess.Popen([sys.executable, os.path.join(
+            HERE, 'helpers', 'looping_clock.py'), '0', '4', '0', '0', 'clock'],
+            env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE, text=True)
+        try:
+            assert 'done' in proc.communicate(timeout=60)[0]
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        assert len(states) > held + 30, 'no hair on a running /clock'
+        out = live.node.output()[said:]
+        assert 'the simulated clock (/clock) arrived after' in out or \
+            'the simulated clock (/clock) runs again after' in out, out
+    finally:
+        res = live.client.set_parameters(NODE, {'use_sim_time': False})
+        assert res[0].successful, res[0].reason
+    assert wait_for(lambda: 'sim_clock_still_s' not in live.values(), 5.0)
+    assert newest_status().level == DiagnosticStatus.OK, newest_status()
+    live.assert_healthy()
