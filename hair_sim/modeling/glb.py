@@ -83,7 +83,10 @@ def read_glb(path):
             raise GlbError('indices must be uint32 or uint16')
         v = view(pos, '<f4', 3).reshape(-1, 3).astype(np.float64)
         t = view(idx, '<u4' if idx['componentType'] == 5125 else '<u2', 1)
-    except (struct.error, KeyError, IndexError, TypeError, ValueError) as exc:
+    # (a count of Infinity or 1e400 in the JSON raised OverflowError, JSON nested 100000
+    # deep RecursionError: the load of a style with such a head failed as "internal error")
+    except (struct.error, KeyError, IndexError, TypeError, ValueError, OverflowError,
+            RecursionError) as exc:
         if isinstance(exc, GlbError):
             raise
         raise GlbError('not a mesh this reader takes (%s)' % type(exc).__name__) from None

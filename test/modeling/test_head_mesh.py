@@ -10,6 +10,7 @@ import pytest
 from hair_sim import load_head, paths
 from hair_sim.modeling.errors import HairstyleError
 from hair_sim.modeling.glb import GlbError, read_glb, write_glb
+from helpers.glb_bytes import glb_json, glb_with_json
 from hair_sim.modeling.yamlio import read_yaml
 
 
@@ -51,6 +52,12 @@ def test_glb_round_trip_and_hostile_files(tmp_path):
     nan[3, 1] = np.nan
     write_glb(str(tmp_path / 'nan.glb'), nan, t)
     cases['nan'] = (tmp_path / 'nan.glb').read_bytes()
+    # (these two raised OverflowError and RecursionError, which no reader caught)
+    for count in ('Infinity', '-Infinity', '1e400'):
+        cases['count ' + count] = glb_with_json(glb_json(data).replace(
+            b'"count":10', b'"count":' + count.encode(), 1))
+        assert cases['count ' + count] != glb_with_json(glb_json(data))
+    cases['deep json'] = glb_with_json(b'[' * 100000 + b']' * 100000)
     for name, blob in cases.items():
         path = tmp_path / (name + '.glb')
         path.write_bytes(blob)

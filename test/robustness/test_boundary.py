@@ -7,6 +7,8 @@ and every refusal must come with a reason (and be counted in /diagnostics).
 """
 
 import copy
+import json
+import math
 import os
 import subprocess
 import sys
@@ -19,6 +21,7 @@ import yaml
 
 from hair_sim import budget, paths
 from hair_sim.modeling import load_hairstyle
+from helpers.glb_bytes import glb_json, glb_with_json
 from helpers.node_process import (Client, diagnostics_values, NodeProcess, probe_rates,
                                   ProbeProcess, wait_for)
 
@@ -550,8 +553,15 @@ def test_13_a_head_mesh_that_is_no_file_here_is_drawn_as_spheres_and_nothing_wai
     (outside / 'real.glb').write_bytes(open(shipped_mesh, 'rb').read())
     os.mkfifo(heads / 'fifo.glb')
     os.symlink(outside / 'real.glb', heads / 'out.glb')
+    # a GLB whose JSON says a count of Infinity, and one nested 100000 deep: read_glb
+    # raised OverflowError and RecursionError, which no reader of it caught
+    with open(shipped_mesh, 'rb') as f:
+        gltf = json.loads(glb_json(f.read()))
+    gltf['accessors'][0]['count'] = math.inf
+    (heads / 'count_inf.glb').write_bytes(glb_with_json(json.dumps(gltf).encode()))
+    (heads / 'deep_json.glb').write_bytes(glb_with_json(b'[' * 100000 + b']' * 100000))
     try:                       # (devices and symlinks to a FIFO: test/modeling/test_head_mesh)
-        for i, mesh in enumerate(('fifo.glb', 'out.glb')):
+        for i, mesh in enumerate(('fifo.glb', 'out.glb', 'count_inf.glb', 'deep_json.glb')):
             unreadable = int(live.values().get('head_mesh_unreadable', 0))
             (heads / ('mesh%d.yaml' % i)).write_text(yaml.safe_dump(dict(
                 HEAD, name='mesh%d' % i, mesh=mesh)))
@@ -566,6 +576,8 @@ def test_13_a_head_mesh_that_is_no_file_here_is_drawn_as_spheres_and_nothing_wai
                 'head_mesh_unreadable', 0)) > unreadable, 5.0), mesh
         out = live.node.output()
         assert 'not a regular file' in out and 'leads out of' in out, out[-2000:]
+        assert 'count_inf.glb' in out and 'deep_json.glb' in out, out[-2000:]
+        assert 'error_' not in ' '.join(live.values()), live.values()
     finally:
         # a reader the old code left waiting on the FIFO gets its end of file
         try:
