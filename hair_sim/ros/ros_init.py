@@ -19,20 +19,20 @@ def init_ros(args=None, context=None):
     """
     Call rclpy.init(args, context); when the log folder cannot be made, again without files.
 
-    A failure other than the log folder's is raised as rclpy raised it (a RuntimeError:
-    arguments rcl cannot parse, a params file missing).
+    Any other failure ends the program with one line that says it (SystemExit): rcl's
+    RuntimeError came as a traceback, where ROS_DOMAIN_ID=abc, say, was its last line.
     """
+    argv = list(sys.argv if args is None else args)
+    program = os.path.basename(argv[0]) if argv else 'hair_sim'
     try:
         rclpy.init(args=args, context=context)
         return
     except RuntimeError as exc:
-        if 'failed to initialize logging' not in str(exc):
-            raise
         why = str(exc).split(', at ')[0]
+        if 'failed to initialize logging' not in why:
+            raise SystemExit('%s: ROS could not start: %s' % (program, why)) from None
     rclpy.try_shutdown(context=context)
-    argv = list(sys.argv if args is None else args)
     rclpy.init(args=argv + ['--ros-args', '--disable-external-lib-logs'], context=context)
     print('%s: ROS log files are off (%s); set ROS_LOG_DIR to a folder this user can '
           'write to keep them; the console still gets every line'
-          % (os.path.basename(argv[0]) if argv else 'hair_sim', why), file=sys.stderr,
-          flush=True)
+          % (program, why), file=sys.stderr, flush=True)

@@ -784,3 +784,21 @@ def test_18_use_sim_time_with_no_clock_is_said_and_the_clock_s_start_too(live):
     assert wait_for(lambda: 'sim_clock_still_s' not in live.values(), 5.0)
     assert newest_status().level == DiagnosticStatus.OK, newest_status()
     live.assert_healthy()
+
+
+# 19 --------------------------------------------------------------------------------
+@pytest.mark.parametrize('program', ['hair_sim_node', 'hair_sim_demo', 'hair_sim_head_driver'])
+def test_19_a_ros_that_cannot_start_is_said_in_one_line(program):
+    """
+    ROS_DOMAIN_ID=abc (a typo in a shell profile): rcl cannot start.
+
+    Each program ended with rclpy's traceback, rcl's reason on its last line. It now ends
+    with one line naming the program and the reason, and exit code 1.
+    """
+    env = dict(os.environ, ROS_DOMAIN_ID='abc')
+    done = subprocess.run([os.path.join(os.path.dirname(sys.executable), program)],
+                          env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 1, done
+    assert done.stderr.strip().splitlines() == [
+        '%s: ROS could not start: failed to initialize rcl: ROS_DOMAIN_ID is not an integral '
+        'number' % program], done.stderr
