@@ -208,7 +208,11 @@ class HairSimNode(Node):
         self._last_publish = None
         self.publish_gap_ms = 0.0                      # longest gap between publishes
         self._tf_pub = None
-        self.builder = SceneBuilder()
+        # a finished build is answered (and swapped in) at once, from the executor's thread:
+        # it waited for the next frame tick, and under use_sim_time with no /clock (a bag
+        # paused) no tick came: a load, even one refused, went unanswered for ever
+        self._builds_done = self.create_guard_condition(self._on_builds_done)
+        self.builder = SceneBuilder(on_done=self._builds_done.trigger)
 
         self.create_subscription(PoseStamped, 'head_pose', self._on_pose,
                                  qos_profile_sensor_data)
@@ -725,6 +729,10 @@ class HairSimNode(Node):
     def _on_frame(self):
         self._collect_builds()
         self._advance()
+
+    @guarded('builds')
+    def _on_builds_done(self):
+        self._collect_builds()
 
     def _advance(self):
         """

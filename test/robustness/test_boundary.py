@@ -739,7 +739,8 @@ def test_18_use_sim_time_with_no_clock_is_said_and_the_clock_s_start_too(live):
 
     The node then steps and publishes nothing, rightly: its time stands still. It did so
     without a word and without a diagnostic (12 s tried from outside). Its diagnostics now
-    run on a steady clock: they go on, warn, and the log says why; a /clock that then runs
+    run on a steady clock: they go on, warn, and the log says why; loads are answered (a
+    finished build waited for a frame tick, which never came); a /clock that then runs
     brings the hair back, and that is said too.
     """
     from diagnostic_msgs.msg import DiagnosticStatus
@@ -766,6 +767,11 @@ def test_18_use_sim_time_with_no_clock_is_said_and_the_clock_s_start_too(live):
         held = len(states)
         time.sleep(1.5)
         assert len(states) == held, 'published on a clock that stands still'
+        # loads are answered all the same (they waited for a frame tick: for ever)
+        r = live.load('no_such_style', timeout=10.0)
+        assert r is not None and not r.success and 'no_such_style' in r.message, r
+        r = live.load('thesis_short', timeout=10.0)
+        assert r is not None and r.success, r
         proc = subprocess.Popen([sys.executable, os.path.join(
             HERE, 'helpers', 'looping_clock.py'), '0', '4', '0', '0', 'clock'],
             env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE, text=True)
