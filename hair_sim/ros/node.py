@@ -191,6 +191,7 @@ class HairSimNode(Node):
         self._encoder = None
         self._encoder_key = None
         self._topology_sent = None        # scene version whose topology was last sent
+        self._published_version = None   # scene version last published
         self._clock_last = None
         self._acc = 0.0
         self._credit = PHYSICS_CREDIT     # the solver's wall-time credit (s)
@@ -315,13 +316,15 @@ class HairSimNode(Node):
         values['sim_clock_stalls'] = str(watch.stalls)
         if news == 'stopped' and watch.never_ran():
             self.get_logger().warning(
-                'use_sim_time is true and no /clock has arrived in %.0f s: nothing is stepped '
-                'or published until one does (play a bag with --clock, start the simulator, '
-                'or set use_sim_time false)' % watch.still_for(now))
+                'use_sim_time is true and no /clock has arrived in %.0f s: the hair is not '
+                'stepped, and is published once a second as it stands, until one does (play '
+                'a bag with --clock, start the simulator, or set use_sim_time false)'
+                % watch.still_for(now))
         elif news == 'stopped':
             self.get_logger().warning(
                 'the simulated clock (/clock) has not moved for %.0f s: the hair holds '
-                'still and nothing is published until it runs again' % watch.still_for(now))
+                'still, and is published once a second as it stands, until it runs again'
+                % watch.still_for(now))
         elif news == 'resumed':
             self.get_logger().info('the simulated clock (/clock) %s after %.1f s'
                                    % ('arrived' if never_ran else 'runs again', was_still))
@@ -733,6 +736,24 @@ class HairSimNode(Node):
     @guarded('builds')
     def _on_builds_done(self):
         self._collect_builds()
+        self._publish_held_scene(still=False)
+
+    def _publish_held_scene(self, still):
+        """
+        On a simulated clock, send a scene the publish timer has not sent, or is not sending.
+
+        On a /clock that stands still (none yet, or a bag paused to tune a style against
+        one frame) the publish timer does not fire: a browser showed the head without hair,
+        and a loaded style was never seen. Here the hair of a load or edit is sent at once
+        (from the builds' callback), and, with still, the hair as it stands when nothing
+        went out for a second (the diagnostics' tick, on the steady clock), so subscribers
+        that come later get it too.
+        """
+        if not self._on_sim_time():
+            return
+        quiet = self._last_publish is None or time.perf_counter() - self._last_publish > 0.9
+        if self._published_version != self.scene.version or (still and quiet):
+            self._on_publish()
 
     def _advance(self):
         """
@@ -855,6 +876,7 @@ class HairSimNode(Node):
         if self.meshcat is not None:
             self.meshcat.submit(mesh, sim.head_pose)
         self.counts['published'] += 1
+        self._published_version = scene.version
         self.publish_ms.append(1e3 * (time.perf_counter() - t0))
         if time.monotonic() >= self._markers_due:          # the big one last, at its own rate
             self._markers_due = max(self._markers_due + 1.0 / self._p('marker_rate'),
@@ -935,6 +957,7 @@ class HairSimNode(Node):
 
     @guarded('diagnostics')
     def _on_diagnostics(self):
+        self._publish_held_scene(still=True)
         sim = self.sim
         fqn = self.get_fully_qualified_name()
         st = DiagnosticStatus(name='hair_sim: %s' % fqn, hardware_id=fqn)

@@ -6,7 +6,8 @@ On use_sim_time the node steps and publishes on the ROS clock, which only moves 
 gone) the node published nothing and said nothing (tried 2026-11-30: 12 s, not a message
 and not a line). The node's diagnostics run on a steady clock and note the ROS time each
 second here; a clock that has stood still STILL_AFTER s is said once, in the log and in
-/diagnostics, and so is its start again.
+/diagnostics, and so is its start again. Meanwhile the node sends its hair as it stands
+once a second, and a style loaded or edited at once.
 """
 
 STILL_AFTER = 3.0              # s of steady time without the ROS clock moving
