@@ -766,6 +766,10 @@ class HairSimNode(Node):
         outputs and the callbacks.
         """
         now = self._pacing_now()
+        if now == 0.0 and self._on_sim_time():
+            # no /clock yet: nothing to step, and no time to anchor to (anchored at 0 by a
+            # publish of the held scene, the first /clock's time came as elapsed: an overrun)
+            return
         if self._clock_last is None:
             self._clock_last = now
             return

@@ -824,18 +824,33 @@ def test_20_a_node_started_on_a_clock_that_stands_still_sends_its_hair(tmp_path)
 
     Its publish timer never fires, so a browser showed the head without hair and a
     renderer got nothing. The hair as it stands now goes out once a second (from the
-    diagnostics' steady tick), so a subscriber that comes later gets it too.
+    diagnostics' steady tick), so a subscriber that comes later gets it too. When the
+    /clock then starts (at the wall time here), that is no elapsed time: no overrun.
     """
+    from diagnostic_msgs.msg import DiagnosticArray
     from hair_sim_msgs.msg import HairState
     node = NodeProcess(tmp_path, ['-p', 'use_sim_time:=true'], namespace='/paused')
     client = Client('hair_sim_test_paused')
     try:
         states = client.record(HairState, '/paused/hair_state')
+        diag = client.record(DiagnosticArray, '/diagnostics')
         assert wait_for(lambda: len(states) >= 1, 30.0), node.output()[-2000:]
         seen = len(states)
         time.sleep(3.0)
         assert 2 <= len(states) - seen <= 5, len(states) - seen
         assert 'no /clock has arrived' in node.output()
+        proc = subprocess.Popen([sys.executable, os.path.join(
+            HERE, 'helpers', 'looping_clock.py'), '0', '3', '0', '0', 'clock'],
+            env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE, text=True)
+        try:
+            assert 'done' in proc.communicate(timeout=60)[0]
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        assert len(states) - seen > 40, 'no hair on a running /clock'
+        assert wait_for(lambda: 'arrived after' in node.output(), 5.0), node.output()[-2000:]
+        assert diagnostics_values(diag, '/paused/hair_sim').get('overruns') == '0', \
+            diagnostics_values(diag, '/paused/hair_sim')
         assert node.alive()
     finally:
         client.close()
