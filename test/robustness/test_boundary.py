@@ -737,12 +737,12 @@ def test_18_use_sim_time_with_no_clock_is_said_and_the_clock_s_start_too(live):
     """
     use_sim_time on, and no /clock (no bag playing, the simulator not started or gone).
 
-    The node then steps and publishes nothing, rightly: its time stands still. It did so
-    without a word and without a diagnostic (12 s tried from outside). Its diagnostics now
-    run on a steady clock: they go on, warn, and the log says why; the hair goes out once a
-    second as it stands; loads are answered (a finished build waited for a frame tick,
-    which never came) and a loaded style is sent at once; a /clock that then runs brings
-    the hair back, and that is said too.
+    The node then steps nothing, rightly: its time stands still. It published nothing
+    either, without a word and without a diagnostic (12 s tried from outside). Its
+    diagnostics now run on a steady clock: they go on, warn, and the log says why; the hair
+    goes out once a second as it stands; loads are answered (a finished build waited for a
+    frame tick, which never came) and a loaded style is sent at once; a /clock that then
+    runs brings the hair back, and that is said too.
     """
     from diagnostic_msgs.msg import DiagnosticStatus
     from hair_sim.modeling.strips import build_strips
