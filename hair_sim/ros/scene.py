@@ -104,7 +104,4 @@ class SceneBuilder:
                 self.pending -= 1
             self.finished.append(job)
             if self.on_done is not None:
-                try:
-                    self.on_done()
-                except Exception:                     # noqa: B902 - the node is going
-                    pass                              # (its frame tick collects the job)
+                self.on_done()
