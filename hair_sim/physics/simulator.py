@@ -16,7 +16,7 @@ import numpy as np
 from hair_sim.modeling.head import MAX_SPHERES
 from hair_sim.modeling.strips import build_strips
 from hair_sim.physics import forces as F
-from hair_sim.physics.inputs import index_array, integer, real_array, real_number
+from hair_sim.physics.inputs import index_array, real_array, real_number
 from hair_sim.physics.motion import filter_head_motion, HeadMotion, quat_to_matrix
 from hair_sim.physics.multirate import multirate_substep
 from hair_sim.physics.params import PhysicsParams
@@ -339,7 +339,6 @@ class HairSimulator:
         """Set the wind (m/s, world frame); speeds above max_wind_speed are clamped."""
         v = real_array(velocity_xyz, 3, 'wind velocity')
         turbulence = real_number(turbulence, 'turbulence')
-        seed = integer(seed, 'seed')
         if not np.all(np.isfinite(v)) or not math.isfinite(turbulence):
             raise ValueError('wind must be finite')
         speed = float(vector_lengths(v))

@@ -2,9 +2,7 @@
 
 import struct
 
-MAGIC = 0x46546C67           # 'glTF'
-JSON_CHUNK = 0x4E4F534A
-BIN_CHUNK = 0x004E4942
+from hair_sim.modeling.glb import BIN_CHUNK, JSON_CHUNK, MAGIC
 
 
 def glb_json(data):
