@@ -60,6 +60,7 @@ from hair_sim.ros.params import all_parameters, PHYSICS
 from hair_sim.ros.pose_lead import PoseLead
 from hair_sim.ros.ros_init import init_ros
 from hair_sim.ros.scene import Scene, SceneBuilder
+from hair_sim.ros.sim_clock import SimClockWatch
 from hair_sim.sinks.markers import (delete_all_markers, head_marker_cdr, head_sphere_markers,
                                     MarkerEncoder, MarkerLayout)
 from hair_sim.sinks.meshcat_sink import CAMERA_VIEWS
@@ -190,8 +191,10 @@ class HairSimNode(Node):
         self._encoder = None
         self._encoder_key = None
         self._topology_sent = None        # scene version whose topology was last sent
+        self._published_version = None   # scene version last published
         self._clock_last = None
         self._acc = 0.0
+        self.overrun_dropped = 0.0        # s of node-clock time the overruns dropped
         self._credit = PHYSICS_CREDIT     # the solver's wall-time credit (s)
         self._credit_wall = None          # perf_counter() when it was last earned
         self._over_share_seen = 0         # physics_over_share at the last diagnostics
@@ -207,7 +210,11 @@ class HairSimNode(Node):
         self._last_publish = None
         self.publish_gap_ms = 0.0                      # longest gap between publishes
         self._tf_pub = None
-        self.builder = SceneBuilder()
+        # a finished build is answered (and swapped in) at once, from the executor's thread:
+        # it waited for the next frame tick, and under use_sim_time with no /clock (a bag
+        # paused) no tick came: a load, even one refused, went unanswered for ever
+        self._builds_done = self.create_guard_condition(self._on_builds_done)
+        self.builder = SceneBuilder(on_done=self._builds_done.trigger)
 
         self.create_subscription(PoseStamped, 'head_pose', self._on_pose,
                                  qos_profile_sensor_data)
@@ -273,8 +280,12 @@ class HairSimNode(Node):
                                              clock=clock)
         self.publish_timer = self.create_timer(1.0 / self._p('publish_rate'),
                                                self._on_publish, clock=clock)
+        # (the diagnostics describe the node, which runs in wall time: on a stopped /clock
+        # they go on, and say so)
         self._timers = [self.frame_timer, self.publish_timer,
-                        self.create_timer(1.0, self._on_diagnostics, clock=clock)]
+                        self.create_timer(1.0, self._on_diagnostics,
+                                          clock=self._steady_clock)]
+        self._sim_clock = SimClockWatch(self._steady_now()) if sim_time else None
         self._clock_last = None           # the elapsed time starts again on this clock
         slewed, self.pose_lead = self.pose_lead.slewed, PoseLead()
         self.pose_lead.slewed = slewed
@@ -290,6 +301,38 @@ class HairSimNode(Node):
 
     def _on_sim_time(self):
         return self._pacing_clock is not self._steady_clock
+
+    def _steady_now(self):
+        return self._steady_clock.now().nanoseconds * 1e-9
+
+    def _watch_sim_clock(self, st, values):
+        """Under use_sim_time: say when /clock stands still, or never came (see sim_clock)."""
+        watch = self._sim_clock
+        if watch is None:
+            return
+        now = self._steady_now()
+        was_still, never_ran = watch.still_for(now), watch.never_ran()
+        news = watch.note(self.get_clock().now().nanoseconds, now)
+        values['sim_clock_still_s'] = '%.1f' % watch.still_for(now)
+        values['sim_clock_stalls'] = str(watch.stalls)
+        if news == 'stopped' and watch.never_ran():
+            self.get_logger().warning(
+                'use_sim_time is true and no /clock has arrived in %.0f s: the hair is not '
+                'stepped, and is published once a second as it stands, until one does (play '
+                'a bag with --clock, start the simulator, or set use_sim_time false)'
+                % watch.still_for(now))
+        elif news == 'stopped':
+            self.get_logger().warning(
+                'the simulated clock (/clock) has not moved for %.0f s: the hair holds '
+                'still, and is published once a second as it stands, until it runs again'
+                % watch.still_for(now))
+        elif news == 'resumed':
+            self.get_logger().info('the simulated clock (/clock) %s after %.1f s'
+                                   % ('arrived' if never_ran else 'runs again', was_still))
+        if watch.still:
+            st.level = DiagnosticStatus.WARN
+            st.message += ('; use_sim_time: no /clock yet' if watch.never_ran() else
+                           '; use_sim_time: /clock stopped %.0f s ago' % watch.still_for(now))
 
     def _pacing_now(self):
         return self._pacing_clock.now().nanoseconds * 1e-9
@@ -691,6 +734,28 @@ class HairSimNode(Node):
         self._collect_builds()
         self._advance()
 
+    @guarded('builds')
+    def _on_builds_done(self):
+        self._collect_builds()
+        self._publish_held_scene(still=False)
+
+    def _publish_held_scene(self, still):
+        """
+        On a simulated clock, send a scene the publish timer has not sent, or is not sending.
+
+        On a /clock that stands still (none yet, or a bag paused to tune a style against
+        one frame) the publish timer does not fire: a browser showed the head without hair,
+        and a loaded style was never seen. Here the hair of a load or edit is sent at once
+        (from the builds' callback), and, with still, the hair as it stands when nothing
+        went out for a second (the diagnostics' tick, on the steady clock), so subscribers
+        that come later get it too.
+        """
+        if not self._on_sim_time():
+            return
+        quiet = self._last_publish is None or time.perf_counter() - self._last_publish > 0.9
+        if self._published_version != self.scene.version or (still and quiet):
+            self._on_publish()
+
     def _advance(self):
         """
         Step the solver up to the node clock (at most max_steps_per_frame steps).
@@ -702,6 +767,10 @@ class HairSimNode(Node):
         outputs and the callbacks.
         """
         now = self._pacing_now()
+        if now == 0.0 and self._on_sim_time():
+            # no /clock yet: nothing to step, and no time to anchor to (anchored at 0 by a
+            # publish of the held scene, the first /clock's time came as elapsed: an overrun)
+            return
         if self._clock_last is None:
             self._clock_last = now
             return
@@ -713,6 +782,7 @@ class HairSimNode(Node):
         cap = self._p('max_steps_per_frame')
         if n > cap:
             self.counts['overruns'] += 1
+            self.overrun_dropped += self._acc - cap * h
             self.sim.skip_time(self._acc - cap * h)      # dropped: the pose clock moves on
             n = cap
             self._acc = 0.0
@@ -812,6 +882,7 @@ class HairSimNode(Node):
         if self.meshcat is not None:
             self.meshcat.submit(mesh, sim.head_pose)
         self.counts['published'] += 1
+        self._published_version = scene.version
         self.publish_ms.append(1e3 * (time.perf_counter() - t0))
         if time.monotonic() >= self._markers_due:          # the big one last, at its own rate
             self._markers_due = max(self._markers_due + 1.0 / self._p('marker_rate'),
@@ -892,6 +963,7 @@ class HairSimNode(Node):
 
     @guarded('diagnostics')
     def _on_diagnostics(self):
+        self._publish_held_scene(still=True)
         sim = self.sim
         fqn = self.get_fully_qualified_name()
         st = DiagnosticStatus(name='hair_sim: %s' % fqn, hardware_id=fqn)
@@ -904,7 +976,8 @@ class HairSimNode(Node):
                   'min_sin_theta': '%.3f' % sim.min_sin_theta,
                   'scene_version': str(self.scene.version),
                   'builds_pending': str(self.builder.pending),
-                  'publish_gap_max_ms': '%.1f' % self.publish_gap_ms}
+                  'publish_gap_max_ms': '%.1f' % self.publish_gap_ms,
+                  'overrun_dropped_s': '%.3f' % self.overrun_dropped}
         values.update({k: str(v) for k, v in self.counts.items()})
         values.update({k: str(v) for k, v in sim.diagnostics().items()})
         values.update({'refused_' + k: str(v) for k, v in sorted(self.refused.items())})
@@ -926,6 +999,7 @@ class HairSimNode(Node):
             values['meshcat_connected'] = str(self.meshcat.connected)
             values['meshcat_frames'] = str(self.meshcat.frames_sent)
             values['meshcat_url'] = self.meshcat_url or ''
+        self._watch_sim_clock(st, values)
         over = self.counts['physics_over_share']
         if over > self._over_share_seen:
             st.level = DiagnosticStatus.WARN

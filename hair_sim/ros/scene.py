@@ -104,4 +104,7 @@ class SceneBuilder:
                 self.pending -= 1
             self.finished.append(job)
             if self.on_done is not None:
-                self.on_done()
+                try:
+                    self.on_done()
+                except Exception:                     # noqa: B902 - the node is going
+                    pass                              # (its frame tick collects the job)

@@ -2,7 +2,8 @@
 Publish head poses at 100 Hz whose stamps jump back, like a looping bag (separate process).
 
 argv: jump_back_s before_s after_s x_after [clock]
-For before_s seconds poses at the origin stamped now; then the stamps jump back by
+It says 'publishing' once the node's subscription is seen, and 'done' at the end. For
+before_s seconds poses at the origin stamped now; then the stamps jump back by
 jump_back_s and keep running from there, with the head moved to (x_after, 0, 0). With
 `clock`, the same time goes out on /clock too, as `ros2 bag play --clock --loop` sends it
 to nodes on use_sim_time.
@@ -29,6 +30,7 @@ def main():
     deadline = time.monotonic() + 20.0
     while pub.get_subscription_count() == 0 and time.monotonic() < deadline:
         time.sleep(0.05)
+    print('publishing', flush=True)       # (a test may start measuring from here)
     msg = PoseStamped()
     msg.header.frame_id = 'world'
     msg.pose.orientation.w = 1.0

@@ -606,9 +606,12 @@ def test_14_a_simulated_clock_that_loops_back_re_anchors_and_publishing_goes_on(
     states = live.client.record(HairState, 'hair_state')
     try:
         proc = subprocess.Popen([sys.executable, os.path.join(
-            HERE, 'helpers', 'looping_clock.py'), '60', '2.5', '6.5', '-0.2', 'clock'],
+            HERE, 'helpers', 'looping_clock.py'), '60', '2.5', '7.5', '-0.2', 'clock'],
             env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE, text=True)
         try:
+            # measured once the clock runs: before it, the node sends its hair once a second
+            # (a probe that caught one of those saw a 1 s gap)
+            assert 'publishing' in proc.stdout.readline()
             probe = ProbeProcess(4.0)                     # from another process
             got = probe.report()['/']['hair_state']
             assert 'done' in proc.communicate(timeout=60)[0]
@@ -616,7 +619,11 @@ def test_14_a_simulated_clock_that_loops_back_re_anchors_and_publishing_goes_on(
             if proc.poll() is None:
                 proc.kill()
         assert got['rate_hz'] >= 24.0 and got['gap_ms_max'] < 500.0, got
-        assert int(live.values().get('pose_clock_jump', 0)) > jumps
+        values = live.values()
+        assert int(values.get('pose_clock_jump', 0)) > jumps, {
+            k: values.get(k) for k in ('poses', 'pose_accepted', 'pose_clock_jump',
+                                       'pose_out_of_order', 'pose_invalid', 'sim_time',
+                                       'sleeping', 'overruns')}
         # the node ran on the simulated clock: its diagnostics' stamps went 60 s back
         stamps = [m.header.stamp.sec for _, m in live.diag[seen:]]
         assert any(b < a - 30 for a, b in zip(stamps, stamps[1:])), stamps
@@ -733,8 +740,75 @@ def test_17_a_log_folder_ros_cannot_make_costs_the_log_files_only(tmp_path, prog
 
 
 # 18 --------------------------------------------------------------------------------
+def test_18_use_sim_time_with_no_clock_is_said_and_the_clock_s_start_too(live):
+    """
+    use_sim_time on, and no /clock (no bag playing, the simulator not started or gone).
+
+    The node then steps nothing, rightly: its time stands still. It published nothing
+    either, without a word and without a diagnostic (12 s tried from outside). Its
+    diagnostics now run on a steady clock: they go on, warn, and the log says why; the hair
+    goes out once a second as it stands; loads are answered (a finished build waited for a
+    frame tick, which never came) and a loaded style is sent at once; a /clock that then
+    runs brings the hair back, and that is said too.
+    """
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from hair_sim.modeling.strips import build_strips
+    from hair_sim_msgs.msg import HairState
+
+    def newest_status():
+        for _, msg in reversed(live.diag):
+            for st in msg.status:
+                if st.name == 'hair_sim: %s' % NODE:
+                    return st
+        return None
+
+    states = live.client.record(HairState, 'hair_state')
+    said = len(live.node.output())
+    res = live.client.set_parameters(NODE, {'use_sim_time': True})
+    assert res[0].successful, res[0].reason
+    try:
+        assert wait_for(lambda: float(live.values().get('sim_clock_still_s', 0)) >= 4.0,
+                        15.0), live.values()
+        st = newest_status()
+        assert st.level == DiagnosticStatus.WARN and 'use_sim_time' in st.message, st
+        out = live.node.output()[said:]
+        assert 'no /clock has arrived' in out or '(/clock) has not moved' in out, out
+        held = len(states)
+        time.sleep(2.5)
+        assert 1 <= len(states) - held <= 4, 'not once a second: %d' % (len(states) - held)
+        # loads are answered all the same (they waited for a frame tick: for ever)
+        r = live.load('no_such_style', timeout=10.0)
+        assert r is not None and not r.success and 'no_such_style' in r.message, r
+        r = live.load('thesis_short', timeout=10.0)
+        assert r is not None and r.success, r
+        # and the new hair is sent at once (a style tuned against a paused frame)
+        size = build_strips(load_hairstyle(paths.shipped_style('thesis_short'))).rest.size
+        assert len(states[-1][1].positions) == size or wait_for(
+            lambda: len(states[-1][1].positions) == size, 0.5), 'the loaded style was not sent'
+        held = len(states)
+        proc = subprocess.Popen([sys.executable, os.path.join(
+            HERE, 'helpers', 'looping_clock.py'), '0', '4', '0', '0', 'clock'],
+            env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE, text=True)
+        try:
+            assert 'done' in proc.communicate(timeout=60)[0]
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        assert len(states) > held + 30, 'no hair on a running /clock'
+        out = live.node.output()[said:]
+        assert 'the simulated clock (/clock) arrived after' in out or \
+            'the simulated clock (/clock) runs again after' in out, out
+    finally:
+        res = live.client.set_parameters(NODE, {'use_sim_time': False})
+        assert res[0].successful, res[0].reason
+    assert wait_for(lambda: 'sim_clock_still_s' not in live.values(), 5.0)
+    assert newest_status().level == DiagnosticStatus.OK, newest_status()
+    live.assert_healthy()
+
+
+# 19 --------------------------------------------------------------------------------
 @pytest.mark.parametrize('program', ['hair_sim_node', 'hair_sim_demo', 'hair_sim_head_driver'])
-def test_18_a_ros_that_cannot_start_is_said_in_one_line(program):
+def test_19_a_ros_that_cannot_start_is_said_in_one_line(program):
     """
     ROS_DOMAIN_ID=abc (a typo in a shell profile): rcl cannot start.
 
@@ -748,3 +822,45 @@ def test_18_a_ros_that_cannot_start_is_said_in_one_line(program):
     assert done.stderr.strip().splitlines() == [
         '%s: ROS could not start: failed to initialize rcl: ROS_DOMAIN_ID is not an integral '
         'number' % program], done.stderr
+
+
+# 20 --------------------------------------------------------------------------------
+def test_20_a_node_started_on_a_clock_that_stands_still_sends_its_hair(tmp_path):
+    """
+    hair_sim_node started with use_sim_time and no /clock (a bag paused, to tune against).
+
+    Its publish timer never fires, so a browser showed the head without hair and a
+    renderer got nothing. The hair as it stands now goes out once a second (from the
+    diagnostics' steady tick), so a subscriber that comes later gets it too. When the
+    /clock then starts (at the wall time here), that is no elapsed time: nothing dropped.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+    from hair_sim_msgs.msg import HairState
+    node = NodeProcess(tmp_path, ['-p', 'use_sim_time:=true'], namespace='/paused')
+    client = Client('hair_sim_test_paused')
+    try:
+        states = client.record(HairState, '/paused/hair_state')
+        diag = client.record(DiagnosticArray, '/diagnostics')
+        assert wait_for(lambda: len(states) >= 1, 30.0), node.output()[-2000:]
+        seen = len(states)
+        time.sleep(3.0)
+        assert 2 <= len(states) - seen <= 5, len(states) - seen
+        assert 'no /clock has arrived' in node.output()
+        proc = subprocess.Popen([sys.executable, os.path.join(
+            HERE, 'helpers', 'looping_clock.py'), '0', '3', '0', '0', 'clock'],
+            env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE, text=True)
+        try:
+            assert 'done' in proc.communicate(timeout=60)[0]
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        assert len(states) - seen > 40, 'no hair on a running /clock'
+        assert wait_for(lambda: 'arrived after' in node.output(), 5.0), node.output()[-2000:]
+        # (anchored at ROS time 0, the first /clock came as 1.8e9 s elapsed, an overrun that
+        # dropped them all; a frame the loaded machine runs late is an overrun too, of ms)
+        values = diagnostics_values(diag, '/paused/hair_sim')
+        assert float(values['overrun_dropped_s']) < 1.0, values
+        assert node.alive()
+    finally:
+        client.close()
+        node.stop()

@@ -1,0 +1,46 @@
+"""SimClockWatch: a ROS clock under use_sim_time that stands still, on fake clocks."""
+
+import pytest
+
+from hair_sim.ros.sim_clock import SimClockWatch, STILL_AFTER
+
+
+def _run(watch, ticks):
+    """Note (ros_ns, steady_s) pairs; return the news of each."""
+    return [watch.note(ros, steady) for ros, steady in ticks]
+
+
+def test_no_clock_at_all_is_said_once_after_still_after():
+    watch = SimClockWatch(10.0)
+    news = _run(watch, [(0, 10.0 + i) for i in range(1, 10)])
+    assert news.count('stopped') == 1 and news.count('resumed') == 0
+    assert news.index('stopped') == int(STILL_AFTER) - 1       # noted at 10 + STILL_AFTER
+    assert watch.never_ran() and watch.still and watch.stalls == 1
+    assert watch.still_for(19.0) == pytest.approx(9.0)
+
+
+def test_a_clock_that_runs_is_never_said():
+    watch = SimClockWatch(0.0)
+    assert _run(watch, [(10 ** 9 * i, float(i)) for i in range(1, 30)]) == [None] * 29
+    assert not watch.still and watch.stalls == 0 and not watch.never_ran()
+
+
+def test_a_paused_clock_is_said_and_its_start_again_too():
+    watch = SimClockWatch(0.0)
+    ticks = [(10 ** 9 * i, float(i)) for i in range(1, 5)]          # runs 4 s
+    ticks += [(4 * 10 ** 9, 4.0 + i) for i in range(1, 6)]          # paused 5 s
+    ticks += [(4 * 10 ** 9 + 10 ** 8 * i, 9.0 + i) for i in range(1, 3)]
+    news = _run(watch, ticks)
+    assert [n for n in news if n] == ['stopped', 'resumed']
+    assert news.index('stopped') == 3 + int(STILL_AFTER)
+    assert not watch.still and watch.stalls == 1 and not watch.never_ran()
+
+
+def test_a_clock_that_arrives_late_is_news_and_a_second_stall_counts_again():
+    watch = SimClockWatch(0.0)
+    news = _run(watch, [(0, 1.0), (0, 2.0), (0, 3.0), (0, 4.0), (5 * 10 ** 9, 5.0)])
+    assert news[-1] == 'resumed' and news.count('stopped') == 1
+    news = _run(watch, [(5 * 10 ** 9, 5.0 + i) for i in range(1, 5)])
+    assert news.count('stopped') == 1 and watch.stalls == 2
+    # a clock stepping back (a looping bag) is movement, not a stall
+    assert watch.note(10 ** 9, 10.0) == 'resumed' and not watch.still
