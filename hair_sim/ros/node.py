@@ -100,6 +100,12 @@ FRAME_SPEND_TICKS = 2.0
 # after the gale.
 SEGMENT_SUBSTEP_S = 1e-6
 SEGMENT_COST_WINDOW = 64
+# Under use_sim_time a /clock that ticks slower than frame_rate (a simulator's 10 Hz clock,
+# a bag played at 3x with its 40 Hz clock) moves more than a frame's time per tick, and the
+# frame timer fires once a tick: max_steps_per_frame then holds per frame_rate tick of wall
+# time since the clock last moved, up to this many ticks (a 10 Hz clock at real speed had
+# 1/3 of its time dropped as overruns, without a word: the hair swung in slow motion).
+SIM_CLOCK_TICKS_MAX = 15
 
 
 def _descriptor(default, description, rng):
@@ -195,6 +201,8 @@ class HairSimNode(Node):
         self._clock_last = None
         self._acc = 0.0
         self.overrun_dropped = 0.0        # s of node-clock time the overruns dropped
+        self._last_overrun = None         # perf_counter() of the last overrun
+        self._clock_moved_wall = None     # perf_counter() when the node clock last moved
         self._credit = PHYSICS_CREDIT     # the solver's wall-time credit (s)
         self._credit_wall = None          # perf_counter() when it was last earned
         self._over_share_seen = 0         # physics_over_share at the last diagnostics
@@ -287,6 +295,7 @@ class HairSimNode(Node):
                                           clock=self._steady_clock)]
         self._sim_clock = SimClockWatch(self._steady_now()) if sim_time else None
         self._clock_last = None           # the elapsed time starts again on this clock
+        self._clock_moved_wall = None
         slewed, self.pose_lead = self.pose_lead.slewed, PoseLead()
         self.pose_lead.slewed = slewed
 
@@ -771,8 +780,9 @@ class HairSimNode(Node):
             # no /clock yet: nothing to step, and no time to anchor to (anchored at 0 by a
             # publish of the held scene, the first /clock's time came as elapsed: an overrun)
             return
+        wall = time.perf_counter()
         if self._clock_last is None:
-            self._clock_last = now
+            self._clock_last, self._clock_moved_wall = now, wall
             return
         elapsed = max(0.0, now - self._clock_last)
         self._clock_last = now
@@ -780,9 +790,13 @@ class HairSimNode(Node):
         self._acc += elapsed
         n = int(self._acc / h)
         cap = self._p('max_steps_per_frame')
+        if elapsed > 0.0:
+            if self._on_sim_time():       # (see SIM_CLOCK_TICKS_MAX)
+                ticks = (wall - self._clock_moved_wall) * self._p('frame_rate')
+                cap = int(cap * min(max(ticks, 1.0), SIM_CLOCK_TICKS_MAX))
+            self._clock_moved_wall = wall
         if n > cap:
-            self.counts['overruns'] += 1
-            self.overrun_dropped += self._acc - cap * h
+            self._note_overrun(self._acc - cap * h, cap, wall)
             self.sim.skip_time(self._acc - cap * h)      # dropped: the pose clock moves on
             n = cap
             self._acc = 0.0
@@ -792,7 +806,6 @@ class HairSimNode(Node):
         step = self.pose_lead.slew(now, elapsed)
         if step > 0.0:                    # poses land early: follow them sooner
             sim.skip_time(step)
-        wall = time.perf_counter()
         if self._credit_wall is not None:
             self._credit = min(PHYSICS_CREDIT, self._credit + self._p('max_physics_share')
                                * (wall - self._credit_wall))
@@ -844,6 +857,19 @@ class HairSimNode(Node):
                 % (sim.params.model, 1e3 * self._last_step[0], self._last_step[1],
                    1e3 * dropped, 100 * self._p('max_physics_share')),
                 throttle_duration_sec=5.0)
+
+    def _note_overrun(self, dropped, cap, wall):
+        """Count `dropped` s of node-clock time beyond `cap` steps; say it when it lasts."""
+        self.counts['overruns'] += 1
+        self.overrun_dropped += dropped
+        lasts = self._last_overrun is not None and wall - self._last_overrun < 1.0
+        self._last_overrun = wall
+        if lasts:                         # (a lone one, a stall or a clock's jump: counted)
+            self.get_logger().warning(
+                'the node clock moved %.0f ms beyond %d steps of 1/%g s in one frame: '
+                'dropped, the hair falls behind it (counted in overruns and '
+                'overrun_dropped_s; raise max_steps_per_frame to simulate it)'
+                % (1e3 * dropped, cap, self._p('sim_rate')), throttle_duration_sec=5.0)
 
     # -------------------------------------------------------------- outputs
     def _stamp_now(self):

@@ -864,3 +864,38 @@ def test_20_a_node_started_on_a_clock_that_stands_still_sends_its_hair(tmp_path)
     finally:
         client.close()
         node.stop()
+
+
+# 21 --------------------------------------------------------------------------------
+@pytest.mark.parametrize('rate, speed', [(10.0, 1.0), (40.0, 3.0)])
+def test_21_a_coarse_or_fast_simulated_clock_is_simulated_not_dropped(live, rate, speed):
+    """
+    use_sim_time under a /clock of 10 Hz (a simulator's), or a bag played at 3x (40 Hz).
+
+    The frame timer then fires once a clock tick, and each tick moves more time than
+    max_steps_per_frame (16 of 1/240 s) covers: a third of the 10 Hz clock's time, and a
+    ninth of the fast bag's, was dropped as overruns, without a word, and the hair swung in
+    slow motion. The cap now holds per frame tick of wall time.
+    """
+    dropped = float(live.values().get('overrun_dropped_s', 0.0))
+    res = live.client.set_parameters(NODE, {'use_sim_time': True})
+    assert res[0].successful, res[0].reason
+    try:
+        proc = subprocess.Popen([sys.executable, os.path.join(
+            HERE, 'helpers', 'coarse_clock.py'), str(rate), str(speed), '4'],
+            env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE, text=True)
+        try:
+            out = proc.communicate(timeout=60)[0]
+            assert 'done' in out
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        advanced = float(out.split('advanced ')[1].split()[0])
+        time.sleep(1.5)                                   # (a diagnostics tick after it)
+        values = live.values()
+        lost = float(values['overrun_dropped_s']) - dropped
+        assert lost < 0.05 * advanced, (lost, advanced, values.get('overruns'))
+    finally:
+        res = live.client.set_parameters(NODE, {'use_sim_time': False})
+        assert res[0].successful, res[0].reason
+    live.assert_healthy()

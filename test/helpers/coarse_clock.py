@@ -1,0 +1,43 @@
+"""
+Publish /clock at a given rate and speed, as a simulator or `ros2 bag play -r` does (process).
+
+argv: rate_hz speed duration_s
+Once a /clock subscriber is seen, the clock starts at the wall time and advances speed / rate_hz
+s every 1 / rate_hz s of wall time, for duration_s; then it says how far it went and 'done'.
+"""
+
+import sys
+import time
+
+import rclpy
+
+
+def main():
+    """Publish the clock."""
+    from rosgraph_msgs.msg import Clock
+
+    rate, speed, duration = (float(v) for v in sys.argv[1:4])
+    rclpy.init()
+    node = rclpy.create_node('coarse_clock_publisher')
+    pub = node.create_publisher(Clock, '/clock', 10)
+    deadline = time.monotonic() + 20.0
+    while pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    t = t0 = time.time()
+    start = time.monotonic()
+    ticks = 0
+    while time.monotonic() - start < duration:
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = int(t), int((t - int(t)) * 1e9)
+        pub.publish(msg)
+        ticks += 1
+        t = t0 + ticks * speed / rate
+        time.sleep(max(0.0, start + ticks / rate - time.monotonic()))
+    print('advanced %.3f' % (t - t0 - speed / rate), flush=True)
+    print('done', flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()
