@@ -296,6 +296,8 @@ class HairSimNode(Node):
         self._sim_clock = SimClockWatch(self._steady_now()) if sim_time else None
         self._clock_last = None           # the elapsed time starts again on this clock
         self._clock_moved_wall = None
+        # (the ROS time as use_sim_time comes on; see _advance)
+        self._sim_time_from = self._pacing_now() if sim_time else None
         slewed, self.pose_lead = self.pose_lead.slewed, PoseLead()
         self.pose_lead.slewed = slewed
 
@@ -776,10 +778,14 @@ class HairSimNode(Node):
         outputs and the callbacks.
         """
         now = self._pacing_now()
-        if now == 0.0 and self._on_sim_time():
-            # no /clock yet: nothing to step, and no time to anchor to (anchored at 0 by a
-            # publish of the held scene, the first /clock's time came as elapsed: an overrun)
-            return
+        if self._sim_time_from is not None:
+            if now == self._sim_time_from:
+                # no /clock since use_sim_time came on: nothing to step, and no time to
+                # anchor to. The ROS time is then 0, or the last /clock of an earlier run
+                # (use_sim_time set again): anchored there by a publish of the held scene,
+                # the next /clock came as elapsed time, an overrun that dropped it all
+                return
+            self._sim_time_from = None
         wall = time.perf_counter()
         if self._clock_last is None:
             self._clock_last, self._clock_moved_wall = now, wall
