@@ -295,7 +295,6 @@ class HairSimNode(Node):
                                           clock=self._steady_clock)]
         self._sim_clock = SimClockWatch(self._steady_now()) if sim_time else None
         self._clock_last = None           # the elapsed time starts again on this clock
-        self._clock_moved_wall = None
         # (the ROS time as use_sim_time comes on; see _advance)
         self._sim_time_from = self._pacing_now() if sim_time else None
         slewed, self.pose_lead = self.pose_lead.slewed, PoseLead()
@@ -802,8 +801,9 @@ class HairSimNode(Node):
                 cap = int(cap * min(max(ticks, 1.0), SIM_CLOCK_TICKS_MAX))
             self._clock_moved_wall = wall
         if n > cap:
-            self._note_overrun(self._acc - cap * h, cap, wall)
-            self.sim.skip_time(self._acc - cap * h)      # dropped: the pose clock moves on
+            beyond = self._acc - cap * h
+            self._note_overrun(beyond, cap, wall)
+            self.sim.skip_time(beyond)                   # dropped: the pose clock moves on
             n = cap
             self._acc = 0.0
         else:

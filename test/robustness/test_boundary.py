@@ -95,6 +95,26 @@ class Live:
         return self.node.stop()
 
 
+def start_helper(script, *args):
+    """Start test/helpers/<script> with args in its own process; its stdout is a pipe."""
+    return subprocess.Popen([sys.executable, os.path.join(HERE, 'helpers', script),
+                             *map(str, args)],
+                            env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE,
+                            text=True)
+
+
+def run_helper(script, *args):
+    """Run test/helpers/<script> with args to its end ('done'); return what it printed."""
+    proc = start_helper(script, *args)
+    try:
+        out = proc.communicate(timeout=60)[0]
+        assert 'done' in out, out
+        return out
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
 def live_session(tmp_path_factory, name):
     """Yield one node process for a test module; it must be healthy at the end."""
     run = Live(tmp_path_factory.mktemp(name))
@@ -374,14 +394,7 @@ def test_8_pose_stamps_that_loop_back_re_anchor_the_clock(live):
     assert live.load('thesis_long').success
     jumps = int(live.values().get('pose_clock_jump', 0))
     states = live.client.record(HairState, 'hair_state')
-    proc = subprocess.Popen([sys.executable, os.path.join(HERE, 'helpers', 'looping_clock.py'),
-                             '60', '2', '4', '0.3'], env=dict(os.environ, PYTHONPATH=HERE),
-                            stdout=subprocess.PIPE, text=True)
-    try:
-        assert 'done' in proc.communicate(timeout=60)[0]
-    finally:
-        if proc.poll() is None:
-            proc.kill()
+    run_helper('looping_clock.py', 60, 2, 4, 0.3)
     time.sleep(1.5)
     assert int(live.values().get('pose_clock_jump', 0)) > jumps
     roots = np.asarray(states[-1][1].positions).reshape(-1, 10, 3)[:, 0]
@@ -605,9 +618,7 @@ def test_14_a_simulated_clock_that_loops_back_re_anchors_and_publishing_goes_on(
     # stands still), and a subscription made late may get nothing
     states = live.client.record(HairState, 'hair_state')
     try:
-        proc = subprocess.Popen([sys.executable, os.path.join(
-            HERE, 'helpers', 'looping_clock.py'), '60', '2.5', '7.5', '-0.2', 'clock'],
-            env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE, text=True)
+        proc = start_helper('looping_clock.py', 60, 2.5, 7.5, -0.2, 'clock')
         try:
             # measured once the clock runs: before it, the node sends its hair once a second
             # (a probe that caught one of those saw a 1 s gap)
@@ -786,14 +797,7 @@ def test_18_use_sim_time_with_no_clock_is_said_and_the_clock_s_start_too(live):
         assert len(states[-1][1].positions) == size or wait_for(
             lambda: len(states[-1][1].positions) == size, 0.5), 'the loaded style was not sent'
         held = len(states)
-        proc = subprocess.Popen([sys.executable, os.path.join(
-            HERE, 'helpers', 'looping_clock.py'), '0', '4', '0', '0', 'clock'],
-            env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE, text=True)
-        try:
-            assert 'done' in proc.communicate(timeout=60)[0]
-        finally:
-            if proc.poll() is None:
-                proc.kill()
+        run_helper('looping_clock.py', 0, 4, 0, 0, 'clock')
         assert len(states) > held + 30, 'no hair on a running /clock'
         out = live.node.output()[said:]
         assert 'the simulated clock (/clock) arrived after' in out or \
@@ -846,14 +850,7 @@ def test_20_a_node_started_on_a_clock_that_stands_still_sends_its_hair(tmp_path)
         time.sleep(3.0)
         assert 2 <= len(states) - seen <= 5, len(states) - seen
         assert 'no /clock has arrived' in node.output()
-        proc = subprocess.Popen([sys.executable, os.path.join(
-            HERE, 'helpers', 'looping_clock.py'), '0', '3', '0', '0', 'clock'],
-            env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE, text=True)
-        try:
-            assert 'done' in proc.communicate(timeout=60)[0]
-        finally:
-            if proc.poll() is None:
-                proc.kill()
+        run_helper('looping_clock.py', 0, 3, 0, 0, 'clock')
         assert len(states) - seen > 40, 'no hair on a running /clock'
         assert wait_for(lambda: 'arrived after' in node.output(), 5.0), node.output()[-2000:]
         # (anchored at ROS time 0, the first /clock came as 1.8e9 s elapsed, an overrun that
@@ -887,15 +884,7 @@ def test_21_a_coarse_or_fast_simulated_clock_is_simulated_not_dropped(live, rate
     assert res[0].successful, res[0].reason
     time.sleep(1.5)
     try:
-        proc = subprocess.Popen([sys.executable, os.path.join(
-            HERE, 'helpers', 'coarse_clock.py'), str(rate), str(speed), '4'],
-            env=dict(os.environ, PYTHONPATH=HERE), stdout=subprocess.PIPE, text=True)
-        try:
-            out = proc.communicate(timeout=60)[0]
-            assert 'done' in out
-        finally:
-            if proc.poll() is None:
-                proc.kill()
+        out = run_helper('coarse_clock.py', rate, speed, 4)
         advanced = float(out.split('advanced ')[1].split()[0])
         time.sleep(1.5)                                   # (a diagnostics tick after it)
         values = live.values()
