@@ -1,11 +1,14 @@
 """
 Publish /clock at a given rate and speed, as a simulator or `ros2 bag play -r` does (process).
 
-argv: rate_hz speed duration_s
+argv: rate_hz speed duration_s [jitter]
 Once a /clock subscriber is seen, the clock starts at the wall time and advances speed / rate_hz
 s every 1 / rate_hz s of wall time, for duration_s; then it says how far it went and 'done'.
+With jitter, each tick goes out up to jitter / rate_hz s early or late (seeded), as a loaded
+simulator's do; the time each carries stays regular.
 """
 
+import random
 import sys
 import time
 
@@ -17,6 +20,8 @@ def main():
     from rosgraph_msgs.msg import Clock
 
     rate, speed, duration = (float(v) for v in sys.argv[1:4])
+    jitter = float(sys.argv[4]) if len(sys.argv) > 4 else 0.0
+    rng = random.Random(21)
     rclpy.init()
     node = rclpy.create_node('coarse_clock_publisher')
     pub = node.create_publisher(Clock, '/clock', 10)
@@ -32,7 +37,8 @@ def main():
         pub.publish(msg)
         ticks += 1
         t = t0 + ticks * speed / rate
-        time.sleep(max(0.0, start + ticks / rate - time.monotonic()))
+        due = start + (ticks + rng.uniform(-jitter, jitter)) / rate
+        time.sleep(max(0.0, due - time.monotonic()))
     print('advanced %.3f' % (t - t0 - speed / rate), flush=True)
     print('done', flush=True)
     node.destroy_node()

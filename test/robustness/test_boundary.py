@@ -864,15 +864,19 @@ def test_20_a_node_started_on_a_clock_that_stands_still_sends_its_hair(tmp_path)
 
 
 # 21 --------------------------------------------------------------------------------
-@pytest.mark.parametrize('rate, speed', [(10.0, 1.0), (40.0, 3.0)])
-def test_21_a_coarse_or_fast_simulated_clock_is_simulated_not_dropped(live, rate, speed):
+@pytest.mark.parametrize('rate, speed, jitter', [(10.0, 1.0, 0.0), (40.0, 3.0, 0.6)])
+def test_21_a_coarse_or_fast_simulated_clock_is_simulated_not_dropped(
+        live, rate, speed, jitter):
     """
     use_sim_time under a /clock of 10 Hz (a simulator's), or a bag played at 3x (40 Hz).
 
     The frame timer then fires once a clock tick, and each tick moves more time than
     max_steps_per_frame (16 of 1/240 s) covers: a third of the 10 Hz clock's time, and a
     ninth of the fast bag's, was dropped as overruns, without a word, and the hair swung in
-    slow motion. The cap now holds per frame tick of wall time.
+    slow motion. The cap now holds per frame tick of wall time, as a budget: the fast clock's
+    ticks here come up to 60 % of a period early or late, and a cap on the wall time since
+    the last tick alone dropped 4.5 % of its time (0.53 of 11.9 s, 53 overruns) in the ticks
+    that came early.
 
     use_sim_time comes on again here, after earlier tests' clocks: the ROS time is then the
     last /clock of those, and the node anchored its stepping there (a publish of the held
@@ -884,12 +888,12 @@ def test_21_a_coarse_or_fast_simulated_clock_is_simulated_not_dropped(live, rate
     assert res[0].successful, res[0].reason
     time.sleep(1.5)
     try:
-        out = run_helper('coarse_clock.py', rate, speed, 4)
+        out = run_helper('coarse_clock.py', rate, speed, 4, jitter)
         advanced = float(out.split('advanced ')[1].split()[0])
         time.sleep(1.5)                                   # (a diagnostics tick after it)
         values = live.values()
         lost = float(values['overrun_dropped_s']) - dropped
-        assert lost < 0.05 * advanced, (lost, advanced, values.get('overruns'))
+        assert lost < 0.01 * advanced, (lost, advanced, values.get('overruns'))
     finally:
         res = live.client.set_parameters(NODE, {'use_sim_time': False})
         assert res[0].successful, res[0].reason
