@@ -882,10 +882,11 @@ class HairSimNode(Node):
         self._last_overrun = wall
         if lasts:                         # (a lone one, a stall or a clock's jump: counted)
             self.get_logger().warning(
-                'the node clock moved %.0f ms beyond %d steps of 1/%g s in one frame: '
+                'the node clock moved %.0f ms beyond %d step%s of 1/%g s in one frame: '
                 'dropped, the hair falls behind it (counted in overruns and '
                 'overrun_dropped_s; raise max_steps_per_frame to simulate it)'
-                % (1e3 * dropped, cap, self._p('sim_rate')), throttle_duration_sec=5.0)
+                % (1e3 * dropped, cap, '' if cap == 1 else 's', self._p('sim_rate')),
+                throttle_duration_sec=5.0)
 
     # -------------------------------------------------------------- outputs
     def _stamp_now(self):
