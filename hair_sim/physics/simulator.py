@@ -120,7 +120,7 @@ class HairSimulator:
         # segment-substeps a step may take at most (None: no limit); a step that would take
         # more simulates less of its time and drops the rest (see step)
         self.max_step_work = None
-        self.time_dropped = 0.0             # s of input time steps dropped (max_step_work)
+        self.time_dropped = 0.0             # s of input time dropped (drop_time)
         self._last_substeps = 1             # how many substeps each strand took last step
         self._R = np.eye(3)
         self._p = np.zeros(3)
@@ -395,9 +395,10 @@ class HairSimulator:
         Let `seconds` of input time pass unsimulated (a driver that fell behind drops them).
 
         The pose clock's mapping moves along, so the next step follows the head pose of
-        now, not one `seconds` old, and output stamps stay honest.
+        now, not one `seconds` old, and output stamps stay honest. The caller counts them
+        (drop_time counts them in time_dropped).
         """
-        self.motion.skip(float(seconds))
+        self.motion.skip(_time_span(seconds))
 
     def stamp_at(self, t=None):
         """
@@ -487,7 +488,7 @@ class HairSimulator:
 
         With max_step_work set, a step whose substeps would update more segments than
         that (the articulated model's whipping tips) simulates the share of dt that fits
-        and drops the rest of it, as a driver that falls behind does (skip_time): the
+        and drops the rest of it, as a driver that falls behind does (drop_time): the
         head's motion is followed as it was up to there, the pose clock then moves on, and
         time_dropped counts it. Each substep keeps its length, so stability is unchanged.
         """
@@ -516,7 +517,7 @@ class HairSimulator:
             return self._awake_step(t, h, t0, head)
         finally:
             if h < dt:
-                self._drop(dt - h)
+                self.drop_time(dt - h)
             if self.time_dropped > dropped:      # (once, cut here or its retry cut, or both)
                 self.counters['shortened_steps'] += 1
 
@@ -794,11 +795,18 @@ class HairSimulator:
          self._pose_time, self._head_moved) = head
         t = self.time + kept
         self._advance_head(t, kept)
-        self._drop(h - kept)
+        self.drop_time(h - kept)
         return t, kept, counts
 
-    def _drop(self, seconds):
-        """Drop `seconds` of input time: time_dropped counts them; the pose clock moves on."""
+    def drop_time(self, seconds):
+        """
+        Drop `seconds` of input time unsimulated: time_dropped counts them (skip_time does not).
+
+        A step cut to max_step_work drops the rest of its time here, and so does a driver
+        out of its share of the wall time (the node's steps not taken); the pose clock
+        moves on, as in skip_time.
+        """
+        seconds = _time_span(seconds)
         self.time_dropped += seconds
         self.motion.skip(seconds)
 
@@ -1037,6 +1045,14 @@ def stability_problem(params, sim, dt):
     """
     length = np.asarray(getattr(sim, 'length', sim), dtype=np.float64)
     return SOLVERS[params.model].stability_problem(params, length, dt, STABILITY_MARGIN)
+
+
+def _time_span(seconds):
+    """Return `seconds` as a float; raise ValueError unless it is finite and not negative."""
+    s = real_number(seconds, 'seconds')
+    if not (math.isfinite(s) and s >= 0.0):
+        raise ValueError('seconds must be finite and not negative, not %r' % (seconds,))
+    return s
 
 
 def _step_length(dt):

@@ -854,8 +854,8 @@ class HairSimNode(Node):
             self.get_logger().error('%s (counted)' % exc, throttle_duration_sec=2.0)
             return
         if done < n:                      # out of credit: the steps not taken are dropped
-            sim.skip_time((n - done) * h)
-        dropped = (n - done) * h + sim.time_dropped - dropped
+            sim.drop_time((n - done) * h)
+        dropped = sim.time_dropped - dropped
         if dropped > 0.0:
             # over its share of the wall time: the outputs keep their rates, the hair
             # falls behind the clock and the time it cannot simulate is dropped. Said when

@@ -39,6 +39,7 @@ def main():
         t = t0 + ticks * speed / rate
         due = start + (ticks + rng.uniform(-jitter, jitter)) / rate
         time.sleep(max(0.0, due - time.monotonic()))
+    time.sleep(0.5)                   # (the last tick reaches the node before we go)
     print('advanced %.3f' % (t - t0 - speed / rate), flush=True)
     print('done', flush=True)
     node.destroy_node()

@@ -90,3 +90,52 @@ def test_the_thesis_model_takes_every_step_whole(long_style):
     sim, t, records = gale_run(long_style, 1, seconds=0.5, model='anjyo')
     assert sim.counters['shortened_steps'] == 0 and sim.time_dropped == 0.0
     assert all(abs(r[2] - DT) < 1e-12 for r in records)
+
+
+@pytest.mark.parametrize('model', ['anjyo', 'articulated'])
+def test_time_a_driver_drops_is_counted_and_the_pose_clock_moves_on(long_style, model):
+    """
+    drop_time and skip_time both move the pose clock on; only drop_time counts the time.
+
+    The node dropped the steps its share of the wall time did not pay for through
+    skip_time, so time_dropped_s left them out: an articulated node on a 3x /clock fell
+    1.7 s behind it with time_dropped_s at 0.14 and no other count of it.
+    """
+    runs = {}
+    for how in ('drop_time', 'skip_time', None):
+        sim = HairSimulator(long_style, model=model)
+        t = 0.0
+        sim.set_head_pose(t, (0.0, 0.0, 0.0), yaw(0.0))
+        for k in range(30):
+            t += DT
+            sim.set_head_pose(t, (0.0, 0.0, 0.0), yaw(0.6 * np.sin(2 * np.pi * t)))
+            if how is not None and k == 10:
+                getattr(sim, how)(5 * DT)             # five steps not taken
+                t += 5 * DT
+                sim.set_head_pose(t, (0.0, 0.0, 0.0), yaw(0.6 * np.sin(2 * np.pi * t)))
+            sim.step(DT)
+        runs[how] = (sim, t)
+    dropped, _ = runs['drop_time']
+    assert dropped.time_dropped == pytest.approx(5 * DT, abs=1e-12)
+    assert runs['skip_time'][0].time_dropped == 0.0 and runs[None][0].time_dropped == 0.0
+    # either way the hair follows the newest pose, stamped 5 steps past its own time
+    for how in ('drop_time', 'skip_time'):
+        sim, t = runs[how]
+        assert sim.time == pytest.approx(30 * DT, abs=1e-9)
+        assert sim.stamp_at() == pytest.approx(t, abs=1e-9)
+        R, p = sim.head_pose
+        assert np.abs(R - quat_to_matrix(yaw(0.6 * np.sin(2 * np.pi * t)))).max() < 1e-9
+    assert np.array_equal(dropped.pos, runs['skip_time'][0].pos)
+
+
+@pytest.mark.parametrize('seconds', [float('nan'), float('inf'), -0.1, '0.1', True, None])
+@pytest.mark.parametrize('how', ['drop_time', 'skip_time'])
+def test_a_span_of_time_that_is_no_span_is_refused_and_changes_nothing(long_style, how,
+                                                                       seconds):
+    sim = HairSimulator(long_style)
+    sim.set_head_pose(0.0, (0.0, 0.0, 0.0), yaw(0.0))
+    sim.step(DT)
+    before = (sim.stamp_at(), sim.time_dropped)
+    with pytest.raises(ValueError, match='seconds'):
+        getattr(sim, how)(seconds)
+    assert (sim.stamp_at(), sim.time_dropped) == before
