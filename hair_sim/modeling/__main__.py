@@ -7,6 +7,7 @@ Look at a hairstyle without ROS.
 import argparse
 import sys
 
+from hair_sim.fileio import unwritable_file
 from hair_sim.modeling.errors import HairstyleError
 from hair_sim.modeling.hairstyle import load_hairstyle
 from hair_sim.modeling.strips_over_head import export_obj, render_png
@@ -21,6 +22,13 @@ def main(argv=None):
     parser.add_argument('--export', metavar='OUT.obj', help='write the strips as an OBJ file')
     parser.add_argument('--png', metavar='OUT.png', help='render front/side/back views')
     args = parser.parse_args(argv)
+    # where the outputs cannot go is said before anything is built (a missing folder
+    # too: it is not made), and a write that fails all the same ends in one line
+    for flag, path in (('--export', args.export), ('--png', args.png)):
+        why = path is not None and unwritable_file(path)
+        if why:
+            print('error: %s %s' % (flag, why), file=sys.stderr)
+            return 2
     try:
         style = load_hairstyle(args.style)
     except HairstyleError as exc:
@@ -30,10 +38,15 @@ def main(argv=None):
     print('%s: %d patches, %d strips, %d strands x %d vertices (head %s)'
           % (style.name, len(style.patches), strips.n_strips, strips.n_strands,
              strips.n_vertices, style.head.name))
-    if args.export:
-        print('wrote %s' % export_obj(style, args.export))
-    if args.png:
-        print('wrote %s' % render_png(style, args.png))
+    for path, write in ((args.export, export_obj), (args.png, render_png)):
+        if path is None:
+            continue
+        try:
+            print('wrote %s' % write(style, path))
+        except OSError as exc:
+            print('error: could not write %s: %s; nothing written there'
+                  % (path, exc.strerror or exc), file=sys.stderr)
+            return 1
     return 0
 
 

@@ -116,3 +116,46 @@ def test_preview_command_writes_obj_and_png(tmp_path):
     bad = subprocess.run([sys.executable, '-m', 'hair_sim.modeling', str(tmp_path / 'no.yaml')],
                          capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and 'cannot read' in bad.stderr
+
+
+@pytest.mark.parametrize('flag', ['--export', '--png'])
+def test_preview_command_says_where_it_cannot_write_in_one_line(tmp_path, flag):
+    """
+    An output in a missing folder, on a folder, or where the write then fails: one line.
+
+    The OBJ export ended in a traceback (FileNotFoundError from the temporary file), and
+    the PNG made the missing folder and wrote into it.
+    """
+    def run(out):
+        return subprocess.run([sys.executable, '-m', 'hair_sim.modeling',
+                               paths.shipped_style('bob_fringe'), flag, out],
+                              capture_output=True, text=True, timeout=120)
+
+    missing = tmp_path / 'nope' / 'x.out'
+    got = run(str(missing))
+    assert got.returncode == 2, got.stderr
+    assert got.stderr.strip() == 'error: %s cannot write into %s' % (flag, missing.parent)
+    assert not missing.parent.exists()
+    got = run(str(tmp_path))
+    assert got.returncode == 2 and 'is a directory' in got.stderr, got.stderr
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize('flag', ['--export', '--png'])
+def test_preview_command_says_a_write_that_fails_in_one_line(tmp_path, flag, monkeypatch,
+                                                             capsys):
+    """A disk that fills while the preview writes: one line, exit 1, nothing left there."""
+    import errno
+    from hair_sim.modeling import __main__ as preview
+
+    def full_disk(path, data, mode=0o644):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    for module in ('hair_sim.modeling.strips_over_head', 'hair_sim.fileio'):
+        monkeypatch.setattr(sys.modules[module], 'write_atomic', full_disk)
+    out = str(tmp_path / 'x.out')
+    assert preview.main([paths.shipped_style('bob_fringe'), flag, out]) == 1
+    err = capsys.readouterr().err
+    assert err == 'error: could not write %s: No space left on device; nothing written ' \
+        'there\n' % out, err
+    assert os.listdir(tmp_path) == []
