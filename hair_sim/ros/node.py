@@ -188,7 +188,7 @@ class HairSimNode(Node):
                    'is not a parameter of this node' if len(unknown) == 1
                    else 'are not parameters of this node'))
         style = self._read_style(self._p('hairstyle'), self._p('hairstyle_dirs'),
-                                 self._rates())
+                                 self._rates(), self._frames())
         sim = HairSimulator(style, **self._physics_params())
         try:
             sim.plan_step(1.0 / self._p('sim_rate'))
@@ -439,7 +439,7 @@ class HairSimNode(Node):
         if 'hairstyle' in new:
             try:
                 style = self._read_style(new['hairstyle'], new.get(
-                    'hairstyle_dirs', self._p('hairstyle_dirs')), rates)
+                    'hairstyle_dirs', self._p('hairstyle_dirs')), rates, self._frames(new))
                 rest = build_strips(style).rest
                 lengths = np.linalg.norm(np.diff(rest, axis=1), axis=2)
             except (HairstyleError, ValueError, OSError) as exc:
@@ -476,6 +476,12 @@ class HairSimNode(Node):
                 return '%s %r is not a valid frame name' % (name, value)
         if 'world_frame' in new and not new['world_frame']:
             return 'world_frame must name a frame (head poses, wind and output are in it)'
+        if 'world_frame' in new or 'head_frame' in new:
+            # (at the start there is no head yet: _read_style checks the head file's frame)
+            head_file = self.sim.head.frame_id if hasattr(self, 'scene') else None
+            why = head_frame_problem(*self._frames(new), head_file)
+            if why:
+                return why
         if 'viewpoint' in new:
             try:
                 vp = [float(v) for v in new['viewpoint']]
@@ -517,7 +523,7 @@ class HairSimNode(Node):
             style = validated[1] if validated and validated[0] == params_key(params) else None
             if style is None:
                 style = self._read_style(changed['hairstyle'], self._p('hairstyle_dirs'),
-                                         self._rates())
+                                         self._rates(), self._frames())
             self._submit('hairstyle', lambda job: self._build_scene(style, 'loaded'), None)
         timers = {'frame_rate': self.frame_timer, 'publish_rate': self.publish_timer}
         for name, timer in timers.items():
@@ -543,11 +549,23 @@ class HairSimNode(Node):
                 self._start_meshcat()
 
     # -------------------------------------------------------------- styles
-    def _read_style(self, request, dirs, rates):
-        """Resolve, read and check a style (and its head) inside `dirs`, within the budget."""
+    def _frames(self, new=None):
+        """Return (world_frame, head_frame) as parameters: `new`'s values, else the node's."""
+        new = new or {}
+        return (new.get('world_frame', self._p('world_frame')),
+                new.get('head_frame', self._p('head_frame')))
+
+    def _read_style(self, request, dirs, rates, frames):
+        """
+        Resolve, read and check a style (and its head) inside `dirs`, within the budget.
+
+        frames is (world_frame, head_frame) as parameters, from _frames: a head whose
+        frame_id is the world's, with no head_frame to name another, is refused.
+        """
         path = resolve_style_path(request, dirs, must_exist=True)
         style = load_hairstyle(path, search_dirs=dirs)
-        why = budget_problem(style, **rates)
+        why = budget_problem(style, **rates) \
+            or head_frame_problem(*frames, style.head.frame_id)
         if why:
             raise HairstyleError(why)
         return style
@@ -631,10 +649,11 @@ class HairSimNode(Node):
     async def _on_load(self, request, response):
         dirs = list(self._p('hairstyle_dirs'))
         rates = self._rates()
+        frames = self._frames()
         path = request.path
 
         def build(job):
-            return self._build_scene(self._read_style(path, dirs, rates), 'loaded')
+            return self._build_scene(self._read_style(path, dirs, rates, frames), 'loaded')
         return await self._answer('load_hairstyle', build, response)
 
     async def _on_edit(self, request, response):
@@ -1119,6 +1138,23 @@ class HairSimNode(Node):
 def params_key(params):
     """Return a comparable key of a parameter list (names and values)."""
     return tuple((p.name, repr(p.value)) for p in params)
+
+
+def head_frame_problem(world_frame, head_frame, head_file_frame):
+    """
+    Return why the head's frame (head_frame, else the head file's) cannot be, or None.
+
+    It cannot be world_frame: wind stamped in the world was then turned with the head (as
+    wind in the head frame is), head-frame markers were drawn at the world's origin, and
+    tf2 refuses a transform from a frame to itself.
+    """
+    if head_frame:
+        if head_frame == world_frame:
+            return 'head_frame %r is world_frame: the head needs a frame of its own' % head_frame
+    elif head_file_frame is not None and head_file_frame == world_frame:
+        return ('the head file\'s frame_id %r is world_frame: set head_frame to give the '
+                'head a frame of its own' % head_file_frame)
+    return None
 
 
 def head_transform(pose_msg, world_frame, head_frame):

@@ -451,6 +451,8 @@ def test_9_the_smaller_ones(live):
     (['-p', 'use_viewpoint:=true', '-p', 'viewpoint:=[.nan, 0.0, 0.0]'], 'viewpoint'),
     (['-p', "world_frame:=''"], 'world_frame'),
     (['-p', 'head_frame:=1bad'], 'head_frame'),
+    (['-p', 'head_frame:=world'], "head_frame 'world' is world_frame"),
+    (['-p', 'world_frame:=head'], "frame_id 'head' is world_frame"),   # (the head file's)
     (['-p', 'meshcat.zmq_url:=http://localhost:6000'], 'meshcat.zmq_url'),
     (['-p', "hairstyle_dirs:=['/nonexistent/styles']"], 'hairstyle_dirs'),
     (['-p', 'meshcat.view:=top'], 'meshcat.view'),

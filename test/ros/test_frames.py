@@ -5,6 +5,8 @@ World markers, head-frame markers, DELETEALL, wind in the head frame, and stamps
 head pose the hair was computed for.
 """
 
+import os
+
 import numpy as np
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
@@ -171,3 +173,58 @@ def test_head_transform_matches_the_pose():
     assert tf.header.stamp.sec == 12 and tf.header.stamp.nanosec == 345
     assert (tf.transform.translation.x, tf.transform.translation.z) == (0.5, 1.6)
     assert (tf.transform.rotation.z, tf.transform.rotation.w) == (0.6, 0.8)
+
+
+def test_the_head_frame_is_never_the_world_frame_by_any_route(node_env, tmp_path):
+    """
+    A head frame that is world_frame is refused: a parameter, a world_frame, a head file.
+
+    It was taken: wind stamped in the world was then turned with the head (as wind in the
+    head frame is), head-frame markers were drawn at the world's origin, and /tf carried a
+    transform from the world to itself, which tf2 refuses.
+    """
+    import re
+    from hair_sim_msgs.msg import Wind
+    from hair_sim_msgs.srv import LoadHairstyle
+    from hair_sim import paths
+    from helpers.ros import call_service
+    _, ex, node, client = node_env
+    stamps = []
+    _pose_publisher(client, stamps, yaw=np.pi / 2)
+    assert spin_until(ex, lambda: len(stamps) > 20 and node.counts['poses'] > 10, 20.0)
+    assert node.head_frame == 'head'                     # the head file's frame_id
+    for values in ({'head_frame': 'world'}, {'world_frame': 'head'},
+                   {'head_frame': 'avatar', 'world_frame': 'avatar'}):
+        res = node.set_parameters_atomically([Parameter(k, value=v) for k, v in values.items()])
+        assert not res.successful and 'is world_frame' in res.reason, (values, res.reason)
+    assert (node.get_parameter('head_frame').value, node.get_parameter('world_frame').value) \
+        == ('', 'world')
+    pub = client.create_publisher(Wind, 'wind', 10)
+    w = Wind()
+    w.header.frame_id = 'world'
+    w.velocity.x = 2.0
+    pub.publish(w)
+    assert spin_until(ex, lambda: node.counts['wind'] >= 1, 10.0)
+    assert np.allclose(node.sim.wind.velocity, [2.0, 0.0, 0.0], atol=1e-3)
+    # a head file whose frame_id is the world's: its style is refused, the running one goes on
+    heads = tmp_path / 'heads'
+    heads.mkdir()
+    shipped = paths.shipped_style('thesis_long')
+    head_file = open(os.path.join(paths.heads_dir(), 'default_adult.yaml')).read()
+    (heads / 'in_world.yaml').write_text(re.sub(r'(?m)^frame_id: head$', 'frame_id: world',
+                                                re.sub(r'(?m)^mesh: .*$', '', head_file)))
+    (tmp_path / 'mine.yaml').write_text(re.sub(r'(?m)^head: default_adult$', 'head: in_world',
+                                               open(shipped).read()))
+    r = call_service(ex, client, LoadHairstyle, '/hair_sim/load_hairstyle',
+                     LoadHairstyle.Request(path='mine.yaml'))
+    assert not r.success and "frame_id 'world' is world_frame" in r.message, r.message
+    assert node.sim.head.frame_id == 'head'
+    # with head_frame naming a frame of its own, that head is taken
+    assert node.set_parameters([Parameter('head_frame', value='skull')])[0].successful
+    r = call_service(ex, client, LoadHairstyle, '/hair_sim/load_hairstyle',
+                     LoadHairstyle.Request(path='mine.yaml'))
+    assert r.success, r.message
+    assert node.sim.head.frame_id == 'world' and node.head_frame == 'skull'
+    # and head_frame cannot then be emptied to give the world back
+    res = node.set_parameters([Parameter('head_frame', value='')])[0]
+    assert not res.successful and 'is world_frame' in res.reason, res.reason
