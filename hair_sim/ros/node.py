@@ -625,8 +625,10 @@ class HairSimNode(Node):
     def _swap(self, job):
         sim, renderer, message = job.result
         old = self.sim
+        # (checked again here: the parameters may have changed while it was built)
         problem = stability_problem(old.params, sim, old.stability_dt) or \
-            budget_problem(sim.style, **self._rates())
+            budget_problem(sim.style, **self._rates()) or \
+            head_frame_problem(*self._frames(), sim.head.frame_id)
         if problem:
             self.builder.latest_style = None          # edits start from the running style
             return False, self._refuse(job.kind, problem)

@@ -219,7 +219,21 @@ def test_the_head_frame_is_never_the_world_frame_by_any_route(node_env, tmp_path
                      LoadHairstyle.Request(path='mine.yaml'))
     assert not r.success and "frame_id 'world' is world_frame" in r.message, r.message
     assert node.sim.head.frame_id == 'head'
-    # with head_frame naming a frame of its own, that head is taken
+    # with head_frame naming a frame of its own, that head is taken; not when head_frame is
+    # emptied while it is built (checked again when it is swapped in, on the node's thread)
+    assert node.set_parameters([Parameter('head_frame', value='skull')])[0].successful
+    submitted = []
+    submit = node.builder.submit
+    node.builder.submit = lambda *args: submitted.append(args[0]) or submit(*args)
+    cli = client.create_client(LoadHairstyle, '/hair_sim/load_hairstyle')
+    assert cli.wait_for_service(timeout_sec=10.0)
+    future = cli.call_async(LoadHairstyle.Request(path='mine.yaml'))
+    assert spin_until(ex, lambda: submitted, 10.0)
+    assert node.set_parameters([Parameter('head_frame', value='')])[0].successful
+    assert spin_until(ex, future.done, 30.0)
+    r = future.result()
+    assert not r.success and "frame_id 'world' is world_frame" in r.message, r.message
+    assert node.sim.head.frame_id == 'head' and node.head_frame == 'head'
     assert node.set_parameters([Parameter('head_frame', value='skull')])[0].successful
     r = call_service(ex, client, LoadHairstyle, '/hair_sim/load_hairstyle',
                      LoadHairstyle.Request(path='mine.yaml'))
