@@ -24,3 +24,16 @@ def rate_hz(text):
     if not (math.isfinite(value) and 0.0 < value <= 10000.0):
         raise argparse.ArgumentTypeError('%r Hz: give more than 0 and at most 10000 Hz' % text)
     return value
+
+
+def namespace(text):
+    """Return text as an absolute ROS namespace, 'alice/' giving '/alice' (an argparse type)."""
+    from rclpy.exceptions import InvalidNamespaceException
+    from rclpy.validate_namespace import validate_namespace
+    ns = '/' + text.strip('/')
+    try:
+        validate_namespace(ns)
+    except InvalidNamespaceException as exc:
+        why = str(exc).splitlines()[0].replace('Invalid namespace: ', '').rstrip(':')
+        raise argparse.ArgumentTypeError('%r is not a ROS namespace: %s' % (text, why)) from None
+    return ns

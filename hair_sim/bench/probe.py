@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from hair_sim.arguments import seconds
+from hair_sim.arguments import namespace, seconds
 
 # (topic, message type, offset of header.stamp in the CDR payload)
 HAIR_TOPICS = (('hair_mesh', 'hair_sim_msgs/msg/HairMesh', 4),
@@ -270,7 +270,7 @@ def main(argv=None):
     from hair_sim.ros.ros_init import init_ros
     parser = argparse.ArgumentParser(prog='hair_sim.bench.probe', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('--namespaces', nargs='+', default=['/'])
+    parser.add_argument('--namespaces', nargs='+', type=namespace, default=['/'])
     parser.add_argument('--duration', type=seconds, default=10.0)
     parser.add_argument('--warmup', type=seconds, default=2.0,
                         help='s to wait after the first message of every topic')

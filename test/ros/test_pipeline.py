@@ -285,7 +285,7 @@ def test_the_probe_says_when_a_topic_is_silent_and_refuses_a_window_it_cannot_ta
     With nothing publishing, the probe still prints its JSON but exits 1 naming the topic.
 
     Before, it exited 0 with rate 0 after its connect timeout, and took --duration nan
-    or -1, printing NaN, which is not JSON.
+    or -1, printing NaN, which is not JSON. Bad namespaces are refused by argparse.
     """
     probe = [sys.executable, '-m', 'hair_sim.bench.probe']
     out = subprocess.run(probe + ['--namespaces', '/nobody_here', '--topics', 'hair_state',
@@ -302,6 +302,19 @@ def test_the_probe_says_when_a_topic_is_silent_and_refuses_a_window_it_cannot_ta
                              timeout=60)
         assert out.returncode == 2 and '--duration' in out.stderr, out.stderr[-2000:]
         assert out.stdout == ''
+    # a namespace ROS would refuse (it ended in rclpy's InvalidTopicNameException); one
+    # written without its leading slash, or with a trailing one, is taken as meant
+    for bad in ('/a//b', '/1st', '/a b'):
+        out = subprocess.run(probe + ['--namespaces', bad], capture_output=True, text=True,
+                             timeout=60)
+        assert out.returncode == 2 and 'is not a ROS namespace' in out.stderr, out.stderr
+        assert 'Traceback' not in out.stderr and out.stdout == ''
+    out = subprocess.run(probe + ['--namespaces', 'nobody_here/', '--topics', 'hair_state',
+                                  '--duration', '0.5', '--warmup', '0',
+                                  '--connect-timeout', '1'],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 1 and '/nobody_here/hair_state' in out.stderr, out.stderr
+    assert json.loads(out.stdout)['silent'] == ['/nobody_here/hair_state']
 
 
 @pytest.mark.parametrize('program, option, values', [
