@@ -848,7 +848,7 @@ class HairSimNode(Node):
             self._clock_last, self._clock_moved_wall = now, wall
             # full: the first ticks after the anchor may come in a burst, the node held
             # up as the clock started (with a frame's steps, a 10 Hz clock lost 0.13-0.23
-            # s in 1 of 3 runs on a loaded machine, and a 3x one 0.76 s)
+            # s and a 3x one 0.76 s, in 2 of 6 runs on a loaded machine)
             self._step_budget = float(SIM_CLOCK_TICKS_MAX * self._p('max_steps_per_frame'))
             return
         elapsed = max(0.0, now - self._clock_last)

@@ -138,6 +138,8 @@ def test_preview_command_says_where_it_cannot_write_in_one_line(tmp_path, flag):
     assert not missing.parent.exists()
     got = run(str(tmp_path))
     assert got.returncode == 2 and 'is a directory' in got.stderr, got.stderr
+    got = run('')
+    assert got.returncode == 2 and '%s needs a file name' % flag in got.stderr, got.stderr
     assert os.listdir(tmp_path) == []
 
 

@@ -52,7 +52,7 @@ def test_ticks_that_come_in_a_burst_just_after_the_clock_starts_are_simulated(tm
 
     Its step budget (SIM_CLOCK_TICKS_MAX) held one frame's steps at the anchor, and wall
     time had no chance to refill it: 0.3 s of a 10 Hz clock seen at once lost 0.23 s as
-    an overrun (test_boundary 21 failed so in 1 of 3 runs on a loaded machine).
+    an overrun (test_boundary 21 failed so in 2 of 6 runs on a loaded machine).
     """
     import os
     from rclpy.time import Time
