@@ -121,7 +121,7 @@ def test_preview_command_writes_obj_and_png(tmp_path):
 @pytest.mark.parametrize('flag', ['--export', '--png'])
 def test_preview_command_says_where_it_cannot_write_in_one_line(tmp_path, flag):
     """
-    An output in a missing folder, on a folder, or where the write then fails: one line.
+    An output in a missing folder, on a folder, or with no name: one line, exit 2.
 
     The OBJ export ended in a traceback (FileNotFoundError from the temporary file), and
     the PNG made the missing folder and wrote into it.
