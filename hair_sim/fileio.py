@@ -64,7 +64,9 @@ def read_regular_file(path, max_bytes):
 
 
 def unwritable_file(path):
-    """Return why a file cannot be written at `path` (a folder or a FIFO there, no folder)."""
+    """Return why a file cannot be written at `path` (no name, a folder or a FIFO there...)."""
+    if not path:
+        return 'needs a file name'
     if os.path.isdir(path):
         return '%s is a directory, not a file to write' % path
     if os.path.exists(path) and not os.path.isfile(path):

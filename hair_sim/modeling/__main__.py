@@ -25,7 +25,7 @@ def main(argv=None):
     # where the outputs cannot go is said before anything is built (a missing folder
     # too: it is not made), and a write that fails all the same ends in one line
     for flag, path in (('--export', args.export), ('--png', args.png)):
-        why = path is not None and ('needs a file name' if not path else unwritable_file(path))
+        why = path is not None and unwritable_file(path)
         if why:
             print('error: %s %s' % (flag, why), file=sys.stderr)
             return 2
