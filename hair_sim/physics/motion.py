@@ -246,9 +246,10 @@ class HeadMotion:
         """
         Shift the mapping by `seconds` the simulator dropped (it could not keep up).
 
-        Pose stamps then keep lining up with the simulator's time.
+        Pose stamps then keep lining up with the simulator's time. Negative seconds move it
+        back: the poses are followed that much later (HairSimulator.shift_pose_clock).
         """
-        if self.offset is None or seconds <= 0.0:
+        if self.offset is None or seconds == 0.0:
             return
         self.offset += seconds
         self.samples = deque(((t - seconds, st, p, q) for t, st, p, q in self.samples),

@@ -400,6 +400,22 @@ class HairSimulator:
         """
         self.motion.skip(_time_span(seconds))
 
+    def shift_pose_clock(self, seconds):
+        """
+        Move the pose clock's mapping by `seconds`, either way; nothing is simulated or dropped.
+
+        Positive: every pose is followed that much sooner (latency no pose needs is taken
+        away). Negative: that much later, so that the next pose has landed before the
+        simulator's clock passes the newest (the head is then interpolated between poses,
+        not held at the newest until the next lands). A driver moves it in small steps (the
+        node: at most 5 % of the time passing), as the head's motion plays that much faster
+        or slower meanwhile; the output stamps (stamp_at) move with it.
+        """
+        s = real_number(seconds, 'seconds')
+        if not math.isfinite(s):
+            raise ValueError('seconds must be finite, not %r' % (seconds,))
+        self.motion.skip(s)
+
     def stamp_at(self, t=None):
         """
         Return the head-pose stamp (s) that simulator time t (default: now) corresponds to.

@@ -214,7 +214,8 @@ class HairSimNode(Node):
         self._segment_costs = deque(maxlen=SEGMENT_COST_WINDOW)   # s per segment-substep
         self._last_drop = None            # perf_counter() of the last frame that dropped time
         self._last_step = (0.0, 0)        # wall s and substeps of the last step taken
-        self.pose_lead = PoseLead()       # how early poses land; slews latency none needs away
+        # how early poses land; slews latency none needs away, and buffers a pose interval
+        self.pose_lead = PoseLead(self._p('interpolate_poses'))
         self.meshcat = None
         self.meshcat_url = None
         self.publish_ms = deque(maxlen=2000)          # publish callback durations
@@ -302,7 +303,7 @@ class HairSimNode(Node):
         self._clock_last = None           # the elapsed time starts again on this clock
         # (the ROS time as use_sim_time comes on; see _advance)
         self._sim_time_from = self._pacing_now() if sim_time else None
-        slewed, self.pose_lead = self.pose_lead.slewed, PoseLead()
+        slewed, self.pose_lead = self.pose_lead.slewed, PoseLead(self._p('interpolate_poses'))
         self.pose_lead.slewed = slewed
 
     def _on_clock_step(self, step):
@@ -558,6 +559,8 @@ class HairSimNode(Node):
                 style = self._read_style(changed['hairstyle'], self._p('hairstyle_dirs'),
                                          self._rates(), self._frames())
             self._submit('hairstyle', lambda job: self._build_scene(style, 'loaded'), None)
+        if 'interpolate_poses' in changed:
+            self.pose_lead.interpolate = bool(changed['interpolate_poses'])
         timers = {'frame_rate': self.frame_timer, 'publish_rate': self.publish_timer}
         for name, timer in timers.items():
             if name in changed:
@@ -771,7 +774,9 @@ class HairSimNode(Node):
         # the simulator's clock now: its time, the part of a step owed, the time since
         # the last frame
         sim_now = self.sim.time + self._acc + max(0.0, now - self._clock_last)
-        self.pose_lead.note(motion, now, stamp - motion.offset - sim_now)
+        samples = motion.samples
+        gap = stamp - samples[-2][1] if len(samples) > 1 else 0.0
+        self.pose_lead.note(motion, now, stamp - motion.offset - sim_now, gap)
 
     @guarded('wind')
     def _on_wind(self, msg):
@@ -877,8 +882,8 @@ class HairSimNode(Node):
             self._step_budget = max(0.0, self._step_budget - n)
         sim = self.sim
         step = self.pose_lead.slew(now, elapsed)
-        if step > 0.0:                    # poses land early: follow them sooner
-            sim.skip_time(step)
+        if step != 0.0:                   # poses land early: follow them sooner; or too
+            sim.shift_pose_clock(step)    # late to interpolate between: later
         if self._credit_wall is not None:
             self._credit = min(PHYSICS_CREDIT, self._credit + self._p('max_physics_share')
                                * (wall - self._credit_wall))
@@ -1088,9 +1093,11 @@ class HairSimNode(Node):
         values['pose_clock_slewed_ms'] = '%.1f' % (1e3 * self.pose_lead.slewed)
         if self._segment_costs:
             values['segment_substep_us'] = '%.3f' % (1e6 * np.median(self._segment_costs))
-        least = self.pose_lead.least(self._pacing_now())
+        now = self._pacing_now()
+        least, slack = self.pose_lead.least(now), self.pose_lead.least_slack(now)
         if least is not None:
             values['pose_lead_ms_min'] = '%.1f' % (1e3 * least)
+            values['pose_slack_ms_min'] = '%.1f' % (1e3 * slack)
         if self.latency_ms:
             lat = np.asarray(self.latency_ms)
             values['latency_ms_p50'] = '%.1f' % float(np.percentile(lat, 50))

@@ -29,6 +29,11 @@ NODE_PARAMETERS = {
                               'head in TF) instead of world_frame', None),
     'publish_tf': (True, 'publish world_frame -> head_frame on /tf from the pose stream '
                    '(when tf2_msgs is installed)', None),
+    'interpolate_poses': (True, 'follow the head about one pose interval (at most 0.1 s) '
+                          'behind its newest pose, so that it moves smoothly between a live '
+                          'tracker\'s poses; false: at once, the head held at each newest '
+                          'pose until the next lands (less latency, a head moving in steps)',
+                          None),
     'use_viewpoint': (False, 'cull strips that cannot be seen from viewpoint', None),
     'viewpoint': ([0.8, 0.0, 0.0], 'eye position for culling, world frame (m)', None),
     'publish_markers': (True, 'publish hair_markers (MarkerArray)', None),

@@ -9,6 +9,15 @@ import time
 from hair_sim import paths
 
 VENV_BIN = os.path.dirname(sys.executable)
+TEST_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def start_helper(script, *args, stdout=subprocess.PIPE):
+    """Start test/helpers/<script> with args in its own process; its stdout a pipe."""
+    return subprocess.Popen([sys.executable, os.path.join(TEST_DIR, 'helpers', script),
+                             *map(str, args)],
+                            env=dict(os.environ, PYTHONPATH=TEST_DIR), stdout=stdout,
+                            text=True)
 
 
 class NodeProcess:

@@ -251,3 +251,47 @@ def test_deadbands_let_hair_under_a_noisy_tracker_sleep(long_style, model):
         assert abs(yaw - (math.pi / 2 - turn_band)) < 1e-6, (yaw, turn_band)
     assert trails[0].mean() > 0.01                                  # the turn moved it
     assert abs(trails[1].mean() - trails[0].mean()) < 0.05 * trails[0].mean(), trails
+
+
+def test_shifting_the_pose_clock_back_interpolates_poses_given_as_their_time_comes(long_style):
+    """
+    Poses given as the simulator's clock reaches their stamps hold the head between them.
+
+    A head turning at 2 rad/s, a pose every 1/30 s given when the clock reaches it: the
+    head moves in steps, standing still in 7 of every 8 steps of 1/240 s. With the pose
+    clock shifted back a pose interval (shift_pose_clock, as the node's buffer does), the
+    head turns in every step, by the turn's rate times the step, and the hair's stamps
+    (stamp_at) trail the newest pose by the interval.
+    """
+    def turns(shift):
+        sim = still_sim(long_style)
+        t0 = sim.time
+        sim.set_head_pose(t0, [0, 0, 0], ID)
+        sim.step(DEFAULT_DT)
+        sim.shift_pose_clock(shift)
+        yaws, k = [], 0
+        for i in range(240):
+            while (k + 1) / 30.0 <= sim.time - t0 + 1e-9:        # its time has come
+                k += 1
+                sim.set_head_pose(t0 + k / 30.0, [0, 0, 0], quat_from_euler(0, 0, 2.0 * k / 30.0))
+            sim.step(DEFAULT_DT)
+            R, _ = sim.head_pose
+            yaws.append(math.atan2(R[1, 0], R[0, 0]))
+        return np.diff(np.unwrap(yaws))[30:], sim
+
+    held, sim = turns(0.0)
+    assert np.mean(np.abs(held) < 1e-9) > 0.8
+    assert sim.stamp_at() == sim.motion.newest_stamp
+    smooth, sim = turns(-1.0 / 30.0)
+    assert np.allclose(smooth, 2.0 * DEFAULT_DT, rtol=1e-6)
+    assert sim.motion.newest_stamp - sim.stamp_at() == pytest.approx(1.0 / 30.0, abs=DEFAULT_DT)
+
+
+@pytest.mark.parametrize('bad', [float('nan'), float('inf'), 'x', None, [1.0]])
+def test_a_pose_clock_shift_that_is_no_number_is_refused(long_style, bad):
+    """shift_pose_clock refuses what is no finite number, and the mapping stays."""
+    sim = still_sim(long_style)
+    offset = sim.motion.offset
+    with pytest.raises(ValueError):
+        sim.shift_pose_clock(bad)
+    assert sim.motion.offset == offset
