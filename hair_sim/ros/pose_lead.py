@@ -13,7 +13,8 @@ them.
   much ahead of the simulator's clock, and the hair follows the head that much late for as
   long as the node runs: `make demo` right after `make clean-cache` held hair_mesh 39 ms
   behind the pose it followed (p50 and p95, `python -m hair_sim.bench.probe`), 6-7 ms on
-  the next runs. When even the least punctual pose of the last WINDOW seconds left more
+  the next runs. When even the least punctual pose of the last WINDOW seconds (with
+  `interpolate`: all but HELD_SHARE of them, counted from the pose before each) left more
   than MARGIN to spare, the mapping is moved on (the poses are followed sooner).
 - **A head held between poses.** A live tracker stamps a pose with the time it describes
   and sends it at once, so it lands as the simulator's clock reaches its time. The
@@ -23,6 +24,8 @@ them.
   mm from where the same poses, interpolated, put them with the thesis model, and 32-82 mm
   with the articulated one at `motion_smoothing` 0, for trackers at 100 to 30 Hz; the tips'
   acceleration was 6 to 35 times that of the smooth motion (`/tmp` script, 2026-12-01).
+  Poses may also land late for good: five nodes and their trackers started together had
+  theirs land 20-66 ms behind the simulator's clock, and the mapping was never moved back.
   With `interpolate` the mapping is moved (back, or on) until the pose before each one
   was still ahead of the simulator's clock when it landed, by at most MARGIN (its "slack",
   lead minus the gap between the two stamps, between 0 and MARGIN for the HELD_SHARE
