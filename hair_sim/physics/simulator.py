@@ -411,10 +411,7 @@ class HairSimulator:
         node: at most 5 % of the time passing), as the head's motion plays that much faster
         or slower meanwhile; the output stamps (stamp_at) move with it.
         """
-        s = real_number(seconds, 'seconds')
-        if not math.isfinite(s):
-            raise ValueError('seconds must be finite, not %r' % (seconds,))
-        self.motion.skip(s)
+        self.motion.skip(_time_span(seconds, either_way=True))
 
     def stamp_at(self, t=None):
         """
@@ -1063,11 +1060,16 @@ def stability_problem(params, sim, dt):
     return SOLVERS[params.model].stability_problem(params, length, dt, STABILITY_MARGIN)
 
 
-def _time_span(seconds):
-    """Return `seconds` as a float; raise ValueError unless it is finite and not negative."""
+def _time_span(seconds, either_way=False):
+    """
+    Return `seconds` as a float; raise ValueError unless it is finite and not negative.
+
+    either_way: a negative span is taken too (a shift of the pose clock back).
+    """
     s = real_number(seconds, 'seconds')
-    if not (math.isfinite(s) and s >= 0.0):
-        raise ValueError('seconds must be finite and not negative, not %r' % (seconds,))
+    if not (math.isfinite(s) and (either_way or s >= 0.0)):
+        raise ValueError('seconds must be finite%s, not %r'
+                         % ('' if either_way else ' and not negative', seconds))
     return s
 
 
