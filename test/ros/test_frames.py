@@ -200,22 +200,29 @@ def test_the_hair_feels_a_live_trackers_head_move_between_its_poses(node_env, in
     them (measured from outside, 2026-12-01). With `interpolate_poses` (the default) the
     node follows the poses a pose interval later, and the tips are where an offline
     replay of the poses it took, each given well ahead, puts them. Without it the hair
-    follows the newest pose at once: no later than its stamp.
+    follows the newest pose at once: a message carries the stamp of the newest pose the
+    node had as it stamped it.
     """
     from hair_sim_msgs.msg import HairState
     _, ex, node, client = node_env
     assert node.set_parameters([Parameter('interpolate_poses', value=interpolate)])[0].successful
-    poses, got = [], []
-    give = node.sim.set_head_pose
+    poses, stamped, got = [], [], []
+    give, stamp_at = node.sim.set_head_pose, node.sim.stamp_at
 
     def record(stamp, position, quaternion):
         poses.append((stamp, position, quaternion))
         return give(stamp, position, quaternion)
-    node.sim.set_head_pose = record
+
+    def stamp_and_newest(t=None):
+        # (the newest pose as the node stamps a message: by the time this process's
+        # subscription takes the message, the node may have taken the next pose)
+        stamp = stamp_at(t)
+        stamped.append((stamp, node.sim.motion.newest_stamp))
+        return stamp
+    node.sim.set_head_pose, node.sim.stamp_at = record, stamp_and_newest
     client.create_subscription(
         HairState, 'hair_state',
         lambda m: got.append((m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec,
-                              poses[-1][0] if poses else None,
                               np.array(m.positions).reshape(m.n_strands, -1, 3)[:, -1])), 50)
     tracker = start_helper('smooth_tracker.py', 30.0, stdout=None)
     try:
@@ -225,16 +232,16 @@ def test_the_hair_feels_a_live_trackers_head_move_between_its_poses(node_env, in
         tracker.wait()
     assert node.sim.motion.counts['clock_jump'] == 0
     # from 3 s after the first pose on (the slew has settled; the start has died away)
-    kept = [(s, newest, tip) for s, newest, tip in got
-            if newest is not None and s > poses[0][0] + 3.0]
+    settled = poses[0][0] + 3.0
+    kept = [(s, tip) for s, tip in got if s > settled]
     assert len(kept) > 100, len(kept)
-    stamps = np.array([s for s, _, _ in kept])
-    lag = np.array([newest for _, newest, _ in kept]) - stamps
+    lag = np.array([newest - s for s, newest in stamped if s is not None and s > settled])
     if not interpolate:
         assert np.median(lag) < 0.005, np.median(lag)
         return
     assert 0.0 <= np.median(lag) < 0.1, np.median(lag)       # at most MAX_BUFFER
-    tips = np.array([tip for _, _, tip in kept])
+    stamps = np.array([s for s, _ in kept])
+    tips = np.array([tip for _, tip in kept])
     replayed = _replay_tips(node.sim.style, node.sim.params, poses, stamps,
                             1.0 / node.get_parameter('sim_rate').value)
     off_mm = 1e3 * np.sqrt(((tips - replayed) ** 2).sum(-1).mean())
