@@ -1,8 +1,45 @@
-"""Where hair_sim's shipped configuration lives (work tree, or the ament share directory)."""
+"""
+Where hair_sim's shipped configuration lives.
 
+In order: the work tree (a clone, or an editable install), the share/ files pip installed
+with this very copy of the package (setup.py's data_files: `pip install .` into a venv, or
+`--target`, `--user`, `--prefix`), the ament index (a colcon install, AMENT_PREFIX_PATH).
+"""
+
+from importlib import metadata
 import os
 
 _PKG_DIR = os.path.dirname(os.path.abspath(__file__))
+_SHARE_CONFIG = ('share', 'hair_sim', 'config')
+
+
+def _installed_config():
+    """
+    Return the config/ that pip installed with this copy of hair_sim, or None.
+
+    The distribution is the one whose recorded files hold this module (another copy on
+    the path, an editable one, has other data or none). Its data files are recorded
+    relative to its site-packages (../../../share/hair_sim/config/...), wherever the
+    scheme put them; `pip install --target DIR` puts them in DIR/share but records them
+    as if DIR were a site-packages, so DIR/share is looked in as well. Before, only the
+    work tree and the ament index were: after `pip install .` into a venv (no
+    AMENT_PREFIX_PATH, as the PyPI ROS wheels run), `hair_sim_node` exited with "no
+    hairstyle 'thesis_long' in .../site-packages/config/hairstyles".
+    """
+    here = os.path.realpath(__file__)
+    candidates = []
+    for dist in metadata.distributions(name='hair_sim'):
+        files = dist.files or ()
+        if not any(os.path.realpath(dist.locate_file(f)) == here
+                   for f in files if f.name == 'paths.py'):
+            continue
+        candidates += [os.path.dirname(os.path.realpath(dist.locate_file(f))) for f in files
+                       if f.name == 'hair_sim.yaml' and tuple(f.parts[-4:-1]) == _SHARE_CONFIG]
+        candidates.append(os.path.join(os.path.dirname(_PKG_DIR), *_SHARE_CONFIG))
+    for found in candidates:
+        if os.path.isdir(os.path.join(found, 'hairstyles')):
+            return found
+    return None
 
 
 def config_dir():
@@ -10,6 +47,9 @@ def config_dir():
     tree = os.path.join(os.path.dirname(_PKG_DIR), 'config')
     if os.path.isdir(os.path.join(tree, 'hairstyles')):
         return tree
+    installed = _installed_config()
+    if installed is not None:
+        return installed
     try:
         from ament_index_python.packages import get_package_share_directory
         return os.path.join(get_package_share_directory('hair_sim'), 'config')
