@@ -47,8 +47,11 @@ def test_a_pip_installed_copy_finds_its_shipped_styles_and_heads(tmp_path, where
         else:
             shutil.copy2(path, src / name)
     dest = tmp_path / 'installed'
+    # --ignore-installed: with --prefix alone pip uninstalls the hair_sim of the environment
+    # it runs in (the suite's own editable install) before installing the copy
     subprocess.run([sys.executable, '-m', 'pip', 'install', '-q', '--no-deps',
-                    '--no-build-isolation', '--disable-pip-version-check', where, str(dest),
+                    '--no-build-isolation', '--disable-pip-version-check', '--ignore-installed',
+                    where, str(dest),
                     str(src)], check=True, capture_output=True, timeout=300)
     if where == '--prefix':
         site = dest / 'lib' / ('python%d.%d' % sys.version_info[:2]) / 'site-packages'
