@@ -19,9 +19,76 @@ test their divisors where a zero can occur, and a step whose state came out non-
 anyway is caught by the simulator's finiteness check of the tips (which sees every NaN,
 since vertices are placed root to tip). Measured at 180 strips: the thesis step 579 ->
 543 us, the U-shape 661 -> 598 us, the same numbers.
+
+Every kernel is cached on disk (cache=True). numba keeps a kernel's cache in the
+__pycache__ beside its source if it can write there, else in the user's cache directory
+(~/.cache/numba), and a kernel it can cache in neither cannot be made at all: when hair_sim
+was installed where its user cannot write (a root-owned venv, image or colcon install) and
+that user has no writable home (a service account), `import hair_sim` raised "RuntimeError:
+cannot cache function 'atan2_vectorizable': no locator available for file ...". Then
+`use_private_cache_dir` points numba at a private directory of the system's temporary one
+(NUMBA_CACHE_DIR), before the first kernel is defined (hair_sim/__init__.py imports this
+module first).
 """
 
+import os
+import stat
+import tempfile
+
 from numba import njit
+from numba.core import config as numba_config
+from numba.misc.appdirs import AppDirs
+
+_PKG_DIR = os.path.dirname(os.path.abspath(__file__))
+
+
+def _can_cache_in(path):
+    """Return True if numba could keep a cache in `path`: its own test (make it, write in it)."""
+    try:
+        os.makedirs(path, exist_ok=True)
+        tempfile.TemporaryFile(dir=path).close()
+    except OSError:
+        return False
+    return True
+
+
+def _private_dir(path):
+    """Return True if `path` is a directory of this user's alone (no symlink, mode 0700)."""
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return False
+    return (stat.S_ISDIR(st.st_mode) and st.st_uid == os.getuid()
+            and not st.st_mode & (stat.S_IRWXG | stat.S_IRWXO))
+
+
+def use_private_cache_dir():
+    """
+    Return the cache directory hair_sim set for numba, or None where numba can cache itself.
+
+    None when NUMBA_CACHE_DIR is set (the user's choice), or numba can write beside the
+    package or into the user's cache directory. Otherwise it is <tmp>/hair_sim-numba-<uid>,
+    kept across runs, if this user owns it alone (a directory someone else made there could
+    plant machine code that numba would load); else a new private directory for this run.
+    """
+    if numba_config.CACHE_DIR:
+        return None
+    user_cache = AppDirs(appname='numba', appauthor=False).user_cache_dir
+    if _can_cache_in(os.path.join(_PKG_DIR, '__pycache__')) or _can_cache_in(user_cache):
+        return None
+    path = os.path.join(tempfile.gettempdir(), 'hair_sim-numba-%d' % os.getuid())
+    try:
+        os.mkdir(path, 0o700)
+    except OSError:
+        pass
+    if not (_private_dir(path) and _can_cache_in(path)):
+        path = tempfile.mkdtemp(prefix='hair_sim-numba-')
+    os.environ['NUMBA_CACHE_DIR'] = path      # (numba rereads its settings from these)
+    numba_config.reload_config()
+    return path
+
+
+CACHE_DIR = use_private_cache_dir()
 
 njit_without_refcounts = njit(cache=True, _nrt=False, error_model='numpy')
 

@@ -9,7 +9,7 @@ compiled (30 Hz from 16.9 s); with the cache warm, 30 Hz from 0.8 s. The node's 
 switch to the articulated model compiled for about 11 s more, in the middle of a run.
 `make setup` runs this once (and again when a source file changes).
 
-It runs the node itself, in a private ROS context with meshcat off, and calls its
+It runs the node itself, in a ROS domain of its own with meshcat off, and calls its
 callbacks as its timers would, for both strand models: head poses, frames, publishing
 (hair_mesh, hair_state, markers, head markers, culled and whole meshes), diagnostics. The
 same code as the node, so the same kernels with the same argument types. Nothing spins,
@@ -81,7 +81,6 @@ def _strands_apart():
 def main():
     """Run the node's frames for both strand models and culled meshes; print the time."""
     import rclpy
-    from rclpy.context import Context
     from rclpy.parameter import Parameter
 
     from hair_sim.ros.node import HairSimNode
@@ -89,11 +88,10 @@ def main():
 
     start = time.perf_counter()
     os.environ['ROS_DOMAIN_ID'] = str(random.Random(os.getpid()).randint(100, 200))
-    context = Context()
-    init_ros(['hair_sim_warmup', '--ros-args', '-p', 'meshcat.enabled:=false'], context=context)
+    init_ros(['hair_sim_warmup', '--ros-args', '-p', 'meshcat.enabled:=false'])
     node = None
     try:
-        node = HairSimNode(context=context)
+        node = HairSimNode()
         t0 = node.get_clock().now().nanoseconds * 1e-9
         _drive(node, t0, range(0, 8))
         node.set_parameters([Parameter('use_viewpoint', value=True)])   # culled meshes
@@ -104,7 +102,7 @@ def main():
     finally:
         if node is not None:
             node.destroy_node()
-        rclpy.try_shutdown(context=context)
+        rclpy.try_shutdown()
     _strands_apart()
     print('hair_sim: numba kernels compiled and cached in %.1f s%s'
           % (time.perf_counter() - start, '' if not errors else

@@ -744,6 +744,24 @@ def test_17_a_log_folder_ros_cannot_make_costs_the_log_files_only(tmp_path, prog
     assert 'Traceback' not in out, out[-2000:]
 
 
+def test_17_the_warmup_runs_where_the_log_folder_cannot_be_made():
+    """
+    `python -m hair_sim.warmup` (make setup; a service user's first run) under such a HOME.
+
+    It gave rclpy a Context of its own, which rclpy keeps as initialised when its logging
+    fails: the retry without log files ended in "Context.init() must only be called once"
+    (a root-owned install warmed up as nobody, 2026-12-01).
+    """
+    env = {k: v for k, v in os.environ.items() if k not in ('ROS_LOG_DIR', 'ROS_HOME')}
+    env['HOME'] = '/proc'
+    run = subprocess.run([sys.executable, '-m', 'hair_sim.warmup'], env=env,
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert 'ROS log files are off' in run.stderr, run.stderr[-2000:]
+    assert 'numba kernels compiled and cached' in run.stdout, run.stdout[-2000:]
+    assert 'Traceback' not in run.stderr, run.stderr[-2000:]
+
+
 # 18 --------------------------------------------------------------------------------
 def test_18_use_sim_time_with_no_clock_is_said_and_the_clock_s_start_too(live):
     """
