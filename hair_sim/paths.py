@@ -3,7 +3,7 @@ Where hair_sim's shipped configuration lives.
 
 In order: the work tree (a clone, or an editable install), the share/ files pip installed
 with this very copy of the package (setup.py's data_files: `pip install .` into a venv, or
-`--target`, `--user`, `--prefix`), the ament index (a colcon install, AMENT_PREFIX_PATH).
+`--prefix`, `--target`), the ament index (a colcon install, AMENT_PREFIX_PATH).
 """
 
 from importlib import metadata
