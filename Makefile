@@ -16,8 +16,14 @@ PY_SRCS := $(shell find hair_sim -name '*.py')
 
 setup: $(STAMP_DEPS) $(STAMP_MSGS) $(STAMP_PKG) $(STAMP_WARM)
 
+# Python 3.11: the pinned ROS 2 Jazzy wheels and build tools (python3.12 got as far as
+# building the messages, where the pinned setuptools fails: pkgutil.ImpImporter is gone)
 $(PY):
-	$(BOOT_PYTHON) -m venv $(VENV)
+	@test -n "$(BOOT_PYTHON)" && "$(BOOT_PYTHON)" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' \
+	  2>/dev/null || { echo "make: hair_sim needs Python 3.11; BOOT_PYTHON ($(or $(BOOT_PYTHON),no python3.11" \
+	  "or python3 on PATH)) is $$("$(BOOT_PYTHON)" --version 2>/dev/null || echo not a Python)." \
+	  "Set BOOT_PYTHON=/path/to/python3.11" >&2; exit 1; }
+	"$(BOOT_PYTHON)" -m venv $(VENV)
 
 # Pinned dependencies; reinstalled only when the requirement files change. pip first: the
 # pip that comes with Python 3.11 falls back to `setup.py develop` for this package, which
@@ -28,8 +34,10 @@ $(STAMP_DEPS): requirements.txt constraints.txt | $(PY)
 	touch $@
 
 # hair_sim_msgs, built with plain CMake into the venv prefix; rebuilt only when msg_defs/ changes.
+# The build folder is the venv's own: CMake's cache remembers where it found ament, and a
+# shared build/msg_defs built a second venv (make setup VENV=...) against the first's.
 $(STAMP_MSGS): $(STAMP_DEPS) $(MSG_SRCS) tools/build_msgs.sh
-	tools/build_msgs.sh $(VENV) build/msg_defs
+	tools/build_msgs.sh $(VENV) $(VENV)/build/msg_defs
 	touch $@
 
 # hair_sim itself, editable; console scripts also go where `ros2 run` looks (<prefix>/lib/hair_sim).

@@ -139,3 +139,53 @@ def test_a_cache_folder_someone_else_could_write_is_not_used(tmp_path):
     assert os.path.dirname(found['cache_dir']) == str(tmp_dir), found
     assert found['mode'] == '0o700' and found['saved'], found
     assert not os.listdir(planted)
+
+
+def test_each_venv_builds_the_messages_in_a_folder_of_its_own(tmp_path):
+    """
+    `make setup VENV=other` builds hair_sim_msgs against that venv's ROS, not another's.
+
+    CMake's cache remembers where it found ament_cmake: with one build/msg_defs for every
+    venv, a second venv's messages were configured against the first venv's ament
+    (measured: "Found ament_cmake: 2.5.4 (/work/main/.venv/share/ament_cmake/cmake)",
+    its libraries' RUNPATH /work/main/.venv/lib), and a Python 3.12 venv failed there.
+    """
+    if shutil.which('make') is None:
+        pytest.skip('no make')
+    venv = tmp_path / 'other_venv'
+    dry = subprocess.run(['make', '-n', '-C', ROOT, 'setup', 'VENV=%s' % venv],
+                         capture_output=True, text=True, timeout=60)
+    calls = [line.split() for line in dry.stdout.splitlines() if 'build_msgs.sh' in line]
+    assert calls, dry.stdout[-2000:] + dry.stderr[-2000:]
+    for call in calls:
+        script = next(i for i, word in enumerate(call) if word.endswith('build_msgs.sh'))
+        prefix, build = call[script + 1:script + 3]
+        assert prefix == str(venv)
+        build = os.path.join(ROOT, build)                 # (a relative one is make's cwd's)
+        assert os.path.commonpath([build, str(venv)]) == str(venv), call
+
+
+@pytest.mark.parametrize('python', ['3.12', 'empty', 'missing'])
+def test_make_setup_refuses_a_python_that_is_not_3_11_in_one_line(tmp_path, python):
+    """
+    The pinned ROS wheels and build tools need 3.11: another Python is refused up front.
+
+    python3.12 got as far as building the messages (the pinned setuptools then fails on
+    its own pkgutil.ImpImporter), and an empty BOOT_PYTHON (neither python3.11 nor python3
+    on PATH) made the recipe's "$(BOOT_PYTHON) -m venv" a line make ran as "m venv",
+    its error ignored, the leading "-" taken as make's own prefix.
+    """
+    if shutil.which('make') is None:
+        pytest.skip('no make')
+    fake = tmp_path / 'python3.12'
+    fake.write_text('#!/bin/sh\n[ "$1" = --version ] && echo "Python 3.12.1" && exit 0\n'
+                    'exit 1\n')
+    fake.chmod(0o755)
+    boot = {'3.12': str(fake), 'empty': '', 'missing': str(tmp_path / 'nothing')}[python]
+    venv = tmp_path / 'venv'
+    run = subprocess.run(['make', '-C', ROOT, 'setup', 'VENV=%s' % venv,
+                          'BOOT_PYTHON=%s' % boot], capture_output=True, text=True, timeout=60)
+    assert run.returncode != 0
+    assert 'hair_sim needs Python 3.11' in run.stderr, run.stderr
+    assert ('Python 3.12.1' if python == '3.12' else 'not a Python') in run.stderr
+    assert not venv.exists()
