@@ -1,4 +1,4 @@
-"""A non-editable install finds the configuration it installed, without ROS's environment."""
+"""How hair_sim is installed: pip layouts, read-only installs (numba's cache), make setup's venvs."""
 
 import json
 import os
