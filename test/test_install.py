@@ -1,4 +1,4 @@
-"""How hair_sim is installed: pip layouts, read-only installs (numba's cache), make setup's venvs."""
+"""How hair_sim is installed: pip layouts, read-only installs, make setup's venvs."""
 
 import json
 import os
