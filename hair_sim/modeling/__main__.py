@@ -2,11 +2,16 @@
 Look at a hairstyle without ROS.
 
     python -m hair_sim.modeling STYLE.yaml [--export out.obj] [--png out.png]
+
+STYLE may also be the name of a style in the package's hairstyle folder (thesis_long), as
+the node and the demo take it: an installed copy has no config/ in the working folder.
 """
 
 import argparse
+import os
 import sys
 
+from hair_sim import paths
 from hair_sim.fileio import unwritable_file
 from hair_sim.modeling.errors import HairstyleError
 from hair_sim.modeling.hairstyle import load_hairstyle
@@ -18,7 +23,7 @@ def main(argv=None):
     """Load a style, print its counts, optionally write an OBJ and a PNG preview."""
     parser = argparse.ArgumentParser(prog='python -m hair_sim.modeling', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('style', help='hairstyle YAML file')
+    parser.add_argument('style', help='hairstyle YAML file, or the name of a shipped style')
     parser.add_argument('--export', metavar='OUT.obj', help='write the strips as an OBJ file')
     parser.add_argument('--png', metavar='OUT.png', help='render front/side/back views')
     args = parser.parse_args(argv)
@@ -29,8 +34,11 @@ def main(argv=None):
         if why:
             print('error: %s %s' % (flag, why), file=sys.stderr)
             return 2
+    path = args.style
+    if not os.path.exists(path) and os.path.isfile(paths.shipped_style(path)):
+        path = paths.shipped_style(path)
     try:
-        style = load_hairstyle(args.style)
+        style = load_hairstyle(path)
     except HairstyleError as exc:
         print('error: %s' % exc, file=sys.stderr)
         return 2

@@ -118,6 +118,27 @@ def test_preview_command_writes_obj_and_png(tmp_path):
     assert bad.returncode == 2 and 'cannot read' in bad.stderr
 
 
+def test_preview_command_takes_a_shipped_style_by_name(tmp_path):
+    """
+    `python -m hair_sim.modeling thesis_long`, as the node and the demo take a style.
+
+    An installed copy has no config/ in the working folder; the name gave "hairstyle file
+    thesis_long: cannot read it". A file of that name in the working folder still wins.
+    """
+    out = subprocess.run([sys.executable, '-m', 'hair_sim.modeling', 'thesis_long'],
+                         capture_output=True, text=True, timeout=120, cwd=str(tmp_path))
+    assert out.returncode == 0, out.stderr
+    strips = build_strips(load_hairstyle(paths.shipped_style('thesis_long')))
+    assert out.stdout.startswith('thesis_long: ') and \
+        '%d strips' % strips.n_strips in out.stdout, out.stdout
+    (tmp_path / 'thesis_long').write_text('not: [a style')
+    mine = subprocess.run([sys.executable, '-m', 'hair_sim.modeling', 'thesis_long'],
+                          capture_output=True, text=True, timeout=60, cwd=str(tmp_path))
+    assert mine.returncode == 2, mine.stdout
+    assert 'hairstyle file %s: not valid YAML' % (tmp_path / 'thesis_long') in mine.stderr, \
+        mine.stderr
+
+
 @pytest.mark.parametrize('flag', ['--export', '--png'])
 def test_preview_command_says_where_it_cannot_write_in_one_line(tmp_path, flag):
     """
