@@ -6,6 +6,7 @@ with this very copy of the package (setup.py's data_files: `pip install .` into 
 `--prefix`, `--target`), the ament index (a colcon install, AMENT_PREFIX_PATH).
 """
 
+import functools
 from importlib import metadata
 import os
 
@@ -13,9 +14,13 @@ _PKG_DIR = os.path.dirname(os.path.abspath(__file__))
 _SHARE_CONFIG = ('share', 'hair_sim', 'config')
 
 
+@functools.lru_cache(maxsize=None)
 def _installed_config():
     """
     Return the config/ that pip installed with this copy of hair_sim, or None.
+
+    Looked up once a process: reading the distributions' file records took 1.1 ms, and
+    config_dir() is called several times a style load or save.
 
     The distribution is the one whose recorded files hold this module (another copy on
     the path, an editable one, has other data or none). Its data files are recorded
