@@ -26,6 +26,15 @@ print(json.dumps({'module': hair_sim.__file__, 'config': paths.config_dir(), 'st
 """
 
 
+def _copy_source(name, dest):
+    """Copy a file or folder of the work tree, without bytecode or numba's caches."""
+    path = os.path.join(ROOT, name)
+    if os.path.isdir(path):
+        shutil.copytree(path, dest, ignore=shutil.ignore_patterns('__pycache__', '*.nbi', '*.nbc'))
+    else:
+        shutil.copy2(path, dest)
+
+
 @pytest.mark.parametrize('where', ['--prefix', '--target'])
 def test_a_pip_installed_copy_finds_its_shipped_styles_and_heads(tmp_path, where):
     """
@@ -40,12 +49,7 @@ def test_a_pip_installed_copy_finds_its_shipped_styles_and_heads(tmp_path, where
     src = tmp_path / 'src'
     src.mkdir()
     for name in SOURCES:
-        path = os.path.join(ROOT, name)
-        if os.path.isdir(path):
-            shutil.copytree(path, src / name,
-                            ignore=shutil.ignore_patterns('__pycache__', '*.nbi', '*.nbc'))
-        else:
-            shutil.copy2(path, src / name)
+        _copy_source(name, src / name)
     dest = tmp_path / 'installed'
     # --ignore-installed: with --prefix alone pip uninstalls the hair_sim of the environment
     # it runs in (the suite's own editable install) before installing the copy
@@ -53,12 +57,9 @@ def test_a_pip_installed_copy_finds_its_shipped_styles_and_heads(tmp_path, where
                     '--no-build-isolation', '--disable-pip-version-check', '--ignore-installed',
                     where, str(dest),
                     str(src)], check=True, capture_output=True, timeout=300)
-    if where == '--prefix':
-        site = dest / 'lib' / ('python%d.%d' % sys.version_info[:2]) / 'site-packages'
-        share = dest / 'share' / 'hair_sim' / 'config'
-    else:
-        site = dest
-        share = dest / 'share' / 'hair_sim' / 'config'
+    site = dest / 'lib' / ('python%d.%d' % sys.version_info[:2]) / 'site-packages' \
+        if where == '--prefix' else dest
+    share = dest / 'share' / 'hair_sim' / 'config'
     env = {k: v for k, v in os.environ.items() if k not in ('AMENT_PREFIX_PATH', 'PYTHONPATH')}
     env['PYTHONPATH'] = str(site)
     run = subprocess.run([sys.executable, '-c', PROBE], cwd=str(tmp_path), env=env,
@@ -88,8 +89,7 @@ print(json.dumps({'cache_dir': where, 'saved': saved,
 def _package_numba_cannot_cache_beside(tmp_path):
     """Copy hair_sim where numba cannot cache beside it: every __pycache__ is a file."""
     dest = tmp_path / 'site' / 'hair_sim'
-    shutil.copytree(os.path.join(ROOT, 'hair_sim'), dest,
-                    ignore=shutil.ignore_patterns('__pycache__', '*.nbi', '*.nbc'))
+    _copy_source('hair_sim', dest)
     for folder, _, _ in os.walk(dest):
         open(os.path.join(folder, '__pycache__'), 'w').close()
     return tmp_path / 'site'
