@@ -69,6 +69,19 @@ class Live:
         """Return the newest diagnostics of the node."""
         return diagnostics_values(self.diag, NODE)
 
+    def values_since(self, since, timeout=15.0):
+        """
+        Return the node's diagnostics from the second tick to arrive after `since` (monotonic).
+
+        The first tick to arrive after a change can have been sent before it: under CI load
+        the tick taken 1.5 s after use_sim_time came on was one sent before the switch, and
+        the node's last second on the steady clock (0.88 s simulated) was put down to the
+        /clock that followed (test 21 failed: 12.805 s in the books for 11.925 s of clock).
+        """
+        assert wait_for(lambda: sum(1 for t, _ in list(self.diag) if t > since) >= 2,
+                        timeout), 'no diagnostics in %.0f s' % timeout
+        return self.values()
+
     def write(self, name, data):
         """Write a style (mapping or text) into the node's hairstyle directory."""
         text = data if isinstance(data, str) else yaml.safe_dump(data)
@@ -387,8 +400,7 @@ def test_8_pose_stamps_that_loop_back_re_anchor_the_clock(live):
     jumps = int(live.values().get('pose_clock_jump', 0))
     states = live.client.record(HairState, 'hair_state')
     run_helper('looping_clock.py', 60, 2, 4, 0.3)
-    time.sleep(1.5)
-    assert int(live.values().get('pose_clock_jump', 0)) > jumps
+    assert int(live.values_since(time.monotonic()).get('pose_clock_jump', 0)) > jumps
     roots = np.asarray(states[-1][1].positions).reshape(-1, 10, 3)[:, 0]
     head = load_hairstyle(paths.shipped_style('thesis_long'))
     from hair_sim.modeling.strips import build_strips
@@ -922,13 +934,11 @@ def run_sim_clock(live, rate, speed, jitter):
     """
     res = live.client.set_parameters(NODE, {'use_sim_time': True})
     assert res[0].successful, res[0].reason
-    time.sleep(1.5)                                       # (a diagnostics tick since)
     try:
-        before = live.values()
+        before = live.values_since(time.monotonic())
         out = run_helper('coarse_clock.py', rate, speed, 4, jitter)
         advanced = float(out.split('advanced ')[1].split()[0])
-        time.sleep(1.5)                                   # (a diagnostics tick after it)
-        return advanced, before, live.values()
+        return advanced, before, live.values_since(time.monotonic())
     finally:
         res = live.client.set_parameters(NODE, {'use_sim_time': False})
         assert res[0].successful, res[0].reason
