@@ -195,6 +195,40 @@ def probe_rates(window, namespaces=('/',), topics=('hair_state',)):
     return {ns: {t: report[ns][t]['rate_hz'] for t in topics} for ns in namespaces}
 
 
+class RateWatch:
+    """
+    test/helpers/rate_watch.py kept running beside a test module: a topic's arrivals, raw.
+
+    Started once, after the node publishes; `span(start, end)` then reports any span of
+    this process's time.monotonic() without a probe process starting (1.6 s a check).
+    """
+
+    def __init__(self, topic='hair_state', timeout=60.0):
+        self.proc = subprocess.Popen(
+            [sys.executable, os.path.join(TEST_DIR, 'helpers', 'rate_watch.py'), topic],
+            env=dict(os.environ, PYTHONPATH=TEST_DIR), stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE, text=True)
+        read_until(self.proc, lambda line: 'watching' in line, timeout,
+                   'the rate watch\'s first %s' % topic)
+
+    def span(self, start, end):
+        """Return messages, rate_hz and gap_ms_max of the arrivals within [start, end]."""
+        import json
+        assert self.proc.poll() is None, 'the rate watch ended'
+        self.proc.stdin.write('%r %r\n' % (start, end))
+        self.proc.stdin.flush()
+        return json.loads(self.proc.stdout.readline())
+
+    def close(self):
+        """End the watch (its stdin closed) and wait for it."""
+        try:
+            self.proc.stdin.close()
+            self.proc.wait(timeout=15)
+        except (OSError, subprocess.TimeoutExpired):
+            self.proc.kill()
+            self.proc.wait(timeout=5)
+
+
 def rate(arrivals, since):
     """Return how many records per second arrived after `since` (records: time, message)."""
     t = [a for a, _ in arrivals if a >= since]
