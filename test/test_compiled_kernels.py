@@ -32,14 +32,14 @@ BIN = os.path.dirname(sys.executable)
 MAX_UNBUNDLED = 8
 
 # argv[1]: where the copy of the warm-up's cache goes; WARMED is printed once it is made
-WARMED = 'hair_sim test: the warm-up has returned %d'
+WARMED = 'hair_sim test: the warm-up has returned'
 
 SCAN = r'''
 import importlib, json, os, pkgutil, shutil, sys
 from hair_sim import warmup
 code = warmup.main()
 shutil.copytree(os.environ['NUMBA_CACHE_DIR'], sys.argv[1])
-print(%r %% code, flush=True)
+print(%r, code, flush=True)
 ''' % WARMED + r'''
 from numba.core import types
 from numba.core.registry import CPUDispatcher
@@ -100,7 +100,7 @@ def fresh_compiles(tmp_path_factory):
         run = subprocess.run([sys.executable, '-u', '-c', SCAN, str(where / 'warm')], env=env,
                              stdout=out, stderr=subprocess.STDOUT, timeout=900)
     text = (where / 'out').read_text()
-    cut = text.find(WARMED.split('%')[0])
+    cut = text.find(WARMED)
     if cut < 0:                                       # the warm-up itself failed
         return {'warmup': (run.returncode, text, where / 'warm'),
                 'scan': (run.returncode, text)}

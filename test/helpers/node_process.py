@@ -212,7 +212,7 @@ class RateWatch:
                    'the rate watch\'s first %s' % topic)
 
     def span(self, start, end):
-        """Return messages, rate_hz and gap_ms_max of the arrivals within [start, end]."""
+        """Return the messages and rate_hz of the arrivals within [start, end]."""
         import json
         assert self.proc.poll() is None, 'the rate watch ended'
         self.proc.stdin.write('%r %r\n' % (start, end))
