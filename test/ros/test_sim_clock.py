@@ -46,19 +46,27 @@ def test_a_clock_that_arrives_late_is_news_and_a_second_stall_counts_again():
     assert watch.note(10 ** 9, 10.0) == 'resumed' and not watch.still
 
 
-def test_ticks_that_come_in_a_burst_just_after_the_clock_starts_are_simulated(tmp_path):
+def test_ticks_that_come_in_a_burst_just_after_the_clock_starts_are_simulated(monkeypatch):
     """
     A node held up as the /clock starts sees its first ticks at once: none is dropped.
 
     Its step budget (SIM_CLOCK_TICKS_MAX) held one frame's steps at the anchor, and wall
     time had no chance to refill it: 0.3 s of a 10 Hz clock seen at once lost 0.23 s as
     an overrun (test_boundary 21 failed so in 2 of 6 runs on a loaded machine).
+
+    The solver's wall-time share (PHYSICS_CREDIT, FRAME_SPEND_TICKS) is another limit, on
+    purpose: 72 steps in one call take 20-30 ms, over one call's 20 ms on a slow machine
+    (a fresh one dropped 0.0625 s so). It is lifted here, so that only the step budget
+    and the overrun are measured.
     """
     import os
     from rclpy.time import Time
     from hair_sim import HairSimulator, paths
+    from hair_sim.ros import node as node_module
     from hair_sim.ros.node import SIM_CLOCK_TICKS_MAX
     from helpers.ros import RunningNode
+    monkeypatch.setattr(node_module, 'PHYSICS_CREDIT', 1e3)
+    monkeypatch.setattr(node_module, 'FRAME_SPEND_TICKS', 1e6)
     run = RunningNode(['--params-file', os.path.join(paths.config_dir(), 'hair_sim.yaml'),
                        '-p', 'use_sim_time:=true', '-p', 'meshcat.enabled:=false'])
     try:
