@@ -56,16 +56,18 @@ $(STAMP_WARM): $(STAMP_PKG) $(STAMP_MSGS) $(PY_SRCS)
 	$(PY) -m hair_sim.warmup
 	touch $@
 
-# Two passes: the tests that measure no rate share the two cores (a file to a worker, so a
-# module's fixture runs once), then those of test/conftest.py's SERIAL_FOLDERS, which start
-# nodes and time them from outside, one at a time (5.5 min alone; the whole suite took 11
-# min one at a time, 9 this way). The second pass runs even when the first failed, so one
-# run reports every failure; the target fails if either did. `pytest test` still runs
-# everything in one process.
+# Three passes: the tests that start no node share the two cores (a file to a worker, so a
+# module's fixture runs once); then those of test/conftest.py's SERIAL_FOLDERS, which start
+# nodes and servers, two files at once (a ROS domain to a worker); then its QUIET ones,
+# which time rates, latencies or frames against a floor, one at a time on a machine of
+# their own. Every pass runs even when one before it failed, so one run reports every
+# failure; the target fails if any did. `pytest test` still runs everything in one process.
 test: setup
-	$(PY) -m pytest -n 2 --dist loadscope -m "not serial" test; shared=$$?; \
-	$(PY) -m pytest -m serial test; alone=$$?; \
-	exit $$(( shared != 0 ? shared : alone ))
+	$(PY) -m pytest -n 2 --dist loadscope --no-loadscope-reorder -m "not serial" test; shared=$$?; \
+	$(PY) -m pytest -n 2 --dist loadscope --no-loadscope-reorder -m "serial and not quiet" \
+		test; paired=$$?; \
+	$(PY) -m pytest -m quiet test; alone=$$?; \
+	exit $$(( shared != 0 ? shared : paired != 0 ? paired : alone ))
 
 # The node with the sample style, a scripted head and wind, in meshcat: prints the URL.
 demo: setup

@@ -12,6 +12,23 @@ os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random(os.getpid()).randint(100, 200)))
 
 
+def _worker_domain(inherited, worker):
+    """
+    Return the ROS domain of pytest-xdist worker `worker` ('gw0', 'gw1', ...).
+
+    The workers inherit the domain of the pytest that started them: two tests of two
+    workers then ran nodes of the same name on one graph. Each worker takes the one after
+    it (before it near the top of the range, 232).
+    """
+    n = int(worker[2:]) + 1
+    return inherited + n if inherited + n <= 232 else inherited - n
+
+
+if os.environ.get('PYTEST_XDIST_WORKER', '').startswith('gw'):
+    os.environ['ROS_DOMAIN_ID'] = str(_worker_domain(int(os.environ['ROS_DOMAIN_ID']),
+                                                     os.environ['PYTEST_XDIST_WORKER']))
+
+
 @pytest.fixture
 def ros_context():
     """Yield an initialised private rclpy context, shut down after the test."""
@@ -39,17 +56,52 @@ def node_env(tmp_path):
         run.close()
 
 
-# Tests that start nodes, servers or subprocesses of the node and measure rates and
-# latencies from outside run alone: `make test` runs them one at a time after the others,
-# which share the machine's two cores (pytest-xdist, a file to a worker).
+# Tests that start nodes, servers or subprocesses of the node run after the others, which
+# share the machine's two cores (pytest-xdist, a file to a worker): `serial`. Two files of
+# them run at once (a domain to a worker), except the QUIET ones, which run alone at the
+# end: they take rates, latencies or their own frame times against a floor, or check that
+# a meshcat port is free after a program ended (another test's server may take it).
 SERIAL_FOLDERS = ('ros', 'robustness', 'sinks')
 SERIAL_FILES = ('test_messages.py',)
+QUIET = {                                   # file: its quiet tests (none named: all)
+    'robustness/test_soak.py': (),
+    'ros/test_frames.py': (),
+    'ros/test_pipeline.py': (
+        'test_make_demo_publishes_at_its_configured_rates',
+        'test_two_avatars_in_two_namespaces_do_not_talk_across',
+        'test_a_second_ctrl_c_while_stopping_is_a_clean_exit_that_leaves_no_server'),
+    'sinks/test_meshcat.py': (),
+    'sinks/test_meshcat_server.py': (),
+}
+
+
+# The files that hold a worker longest, started first (`make test` passes pytest-xdist
+# --no-loadscope-reorder, which keeps this order): a worker then takes the short ones while
+# the other is still busy, rather than one worker finishing a long file alone at the end.
+# Seconds in their pass on an idle 2-core machine (2026-12-01): 214, 132 (one fresh
+# compile of the package), 95, 95; 240, 50, 27.
+LONGEST_FIRST = ('physics/test_articulated.py', 'test_compiled_kernels.py',
+                 'modeling/test_head_fit.py', 'bench/test_cli.py',
+                 'robustness/test_boundary.py', 'ros/test_pipeline.py',
+                 'robustness/test_fuzz.py')
 
 
 def pytest_collection_modifyitems(config, items):
-    """Mark the tests of SERIAL_FOLDERS and SERIAL_FILES `serial`."""
+    """
+    Mark the tests of SERIAL_FOLDERS and SERIAL_FILES `serial`, and QUIET's `quiet`.
+
+    And put LONGEST_FIRST's files first, in that order (the others keep theirs).
+    """
     here = os.path.dirname(os.path.abspath(__file__))
+
+    def rank(item):
+        where = os.path.relpath(str(item.path), here).replace(os.sep, '/')
+        return LONGEST_FIRST.index(where) if where in LONGEST_FIRST else len(LONGEST_FIRST)
+    items.sort(key=rank)
     for item in items:
         where = os.path.relpath(str(item.path), here)
         if where.split(os.sep)[0] in SERIAL_FOLDERS or where in SERIAL_FILES:
             item.add_marker(pytest.mark.serial)
+        quiet = QUIET.get(where.replace(os.sep, '/'))
+        if quiet is not None and (not quiet or item.originalname in quiet):
+            item.add_marker(pytest.mark.quiet)
