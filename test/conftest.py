@@ -68,8 +68,7 @@ QUIET = {                                   # file: its quiet tests (none named:
     'ros/test_frames.py': (),
     'ros/test_pipeline.py': (
         'test_make_demo_publishes_at_its_configured_rates',
-        'test_two_avatars_in_two_namespaces_do_not_talk_across',
-        'test_a_second_ctrl_c_while_stopping_is_a_clean_exit_that_leaves_no_server'),
+        'test_two_avatars_in_two_namespaces_do_not_talk_across'),
     'sinks/test_meshcat.py': (),
     'sinks/test_meshcat_server.py': (),
 }

@@ -15,6 +15,7 @@ import sys
 import time
 
 import numpy as np
+import psutil
 import pytest
 
 from helpers.node_process import (Client, diagnostics_values, NodeProcess, probe_rates,
@@ -253,10 +254,12 @@ def test_a_second_ctrl_c_while_stopping_is_a_clean_exit_that_leaves_no_server(pr
     Before, the second interrupt landed in that cleanup: the program died of the signal
     (in 5 of 5 tries), once with a KeyboardInterrupt traceback, and left the server holding
     port 7000, so the next demo's URL showed that server's stale scene.
+
+    The server is watched by its process, found among the program's as it shows the URL
+    (its port may be another program's a moment later: tests run two at a time).
     """
     import re
     import signal
-    import socket
     exe = os.path.join(os.path.dirname(sys.executable), 'hair_sim_' + program)
     cmd = [exe, '--ros-args', '-p', 'meshcat.enabled:=true'] if program == 'node' else \
         [exe, '--duration', '60']
@@ -266,6 +269,10 @@ def test_a_second_ctrl_c_while_stopping_is_a_clean_exit_that_leaves_no_server(pr
         url = r'http://127\.0\.0\.1:(\d+)/static'
         seen = read_until(proc, lambda line: re.search(url, line), 60.0, 'the meshcat URL')
         port = int(re.search(url, seen[-1]).group(1))
+        server = [p for p in psutil.Process(proc.pid).children(recursive=True)
+                  if port in [c.laddr.port for c in p.net_connections('tcp')
+                              if c.status == psutil.CONN_LISTEN]]
+        assert len(server) == 1, 'no process of the program listens on %d' % port
         time.sleep(1.0 + 0.5 * k)
         proc.send_signal(signal.SIGINT)
         time.sleep(0.02 * k)
@@ -273,11 +280,16 @@ def test_a_second_ctrl_c_while_stopping_is_a_clean_exit_that_leaves_no_server(pr
         out = ''.join(seen) + proc.communicate(timeout=30)[0]
         assert proc.returncode == 0 and 'Traceback' not in out, out[-3000:]
         assert 'context is invalid' not in out, out[-3000:]
-        probe = socket.socket()
-        try:
-            assert probe.connect_ex(('127.0.0.1', port)) != 0, 'a server still on %d' % port
-        finally:
-            probe.close()
+        assert not _running(server[0]), 'the server %d (port %d) outlived its program' % (
+            server[0].pid, port)
+
+
+def _running(process):
+    """Return whether a psutil process runs (one that ended may stay a zombie of pid 1)."""
+    try:
+        return process.status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return False
 
 
 def test_the_probe_says_when_a_topic_is_silent_and_refuses_a_window_it_cannot_take():
