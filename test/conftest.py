@@ -59,11 +59,23 @@ def node_env(tmp_path):
 # Tests that start nodes, servers or subprocesses of the node run after the others, which
 # share the machine's two cores (pytest-xdist, a file to a worker): `serial`. Two files of
 # them run at once (a domain to a worker), except the QUIET ones, which run alone at the
-# end: they take rates, latencies or their own frame times against a floor, or check that
-# a meshcat port is free after a program ended (another test's server may take it).
+# end: they take rates, latencies, the longest gap between messages or their own frame
+# times against a floor, or check that a meshcat port is free after a program ended
+# (another test's server may take it). In the paired pass boundary test 20 failed once on a
+# gap of 0.57 s (0.5 asked), and 21 once on a /clock's books 0.3 s short (a tick of 0.1 s
+# allowed: the node saw the clock's fourth tick first); rates over 2 s passed there.
 SERIAL_FOLDERS = ('ros', 'robustness', 'sinks')
 SERIAL_FILES = ('test_messages.py',)
 QUIET = {                                   # file: its quiet tests (none named: all)
+    'robustness/test_boundary.py': (                  # publishing never stops 0.5 s
+        'test_7_sizes_follow_the_budget_and_loads_do_not_stop_publishing',
+        'test_12_a_gale_the_solver_cannot_keep_up_with_does_not_stop_publishing',
+        'test_13_a_head_mesh_that_is_no_file_here_is_drawn_as_spheres_and_nothing_waits',
+        'test_14_a_simulated_clock_that_loops_back_re_anchors_and_publishing_goes_on',
+        'test_16_a_system_clock_stepped_back_stops_neither_the_node_nor_the_demo_driver',
+        'test_20_a_node_started_on_a_clock_that_stands_still_sends_its_hair',
+        'test_21_a_coarse_or_fast_simulated_clock_is_simulated_not_dropped',  # books to
+        'test_22_time_the_solver_has_no_share_of_the_wall_time_for_is_counted'),  # a tick
     'robustness/test_soak.py': (),
     'ros/test_frames.py': (),
     'ros/test_pipeline.py': (
