@@ -150,6 +150,15 @@ def read_until(proc, found, timeout, what):
     raise AssertionError('%s: not seen\n%s' % (what, ''.join(seen)[-3000:]))
 
 
+def process_running(pid):
+    """Return whether process pid runs (an orphan that ended may stay a zombie of pid 1)."""
+    try:
+        with open('/proc/%d/stat' % pid) as f:
+            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except FileNotFoundError:
+        return False
+
+
 def wait_for(predicate, timeout):
     """Poll predicate() until true or timeout; return its last value."""
     end = time.monotonic() + timeout

@@ -19,7 +19,7 @@ import psutil
 import pytest
 
 from helpers.node_process import (Client, diagnostics_values, NodeProcess, probe_rates,
-                                  read_until, wait_for)
+                                  process_running, read_until, wait_for)
 
 HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.path.dirname(sys.executable)
@@ -280,16 +280,8 @@ def test_a_second_ctrl_c_while_stopping_is_a_clean_exit_that_leaves_no_server(pr
         out = ''.join(seen) + proc.communicate(timeout=30)[0]
         assert proc.returncode == 0 and 'Traceback' not in out, out[-3000:]
         assert 'context is invalid' not in out, out[-3000:]
-        assert not _running(server[0]), 'the server %d (port %d) outlived its program' % (
-            server[0].pid, port)
-
-
-def _running(process):
-    """Return whether a psutil process runs (one that ended may stay a zombie of pid 1)."""
-    try:
-        return process.status() != psutil.STATUS_ZOMBIE
-    except psutil.NoSuchProcess:
-        return False
+        assert not process_running(server[0].pid), \
+            'the server %d (port %d) outlived its program' % (server[0].pid, port)
 
 
 def test_the_probe_says_when_a_topic_is_silent_and_refuses_a_window_it_cannot_take():

@@ -11,6 +11,7 @@ from PIL import Image
 import pytest
 
 from hair_sim.sinks.meshcat_sink import find_chromium, screenshot, start_server
+from helpers.node_process import process_running
 
 BIN = os.path.dirname(sys.executable)
 
@@ -237,15 +238,6 @@ def test_camera_looks_from_the_named_view(view, axis):
     assert 0.0 < world[2] < 0.2                      # a little above the head's centre
 
 
-def _running(pid):
-    """Return whether process pid runs (an orphan that ended may stay a zombie of pid 1)."""
-    try:
-        with open('/proc/%d/stat' % pid) as f:
-            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
-    except FileNotFoundError:
-        return False
-
-
 @pytest.mark.parametrize('ending', ['return', 'error', 'SIGKILL', 'SIGHUP'])
 def test_a_program_that_ends_without_stopping_the_sink_leaves_no_server(ending):
     """
@@ -274,7 +266,7 @@ def test_a_program_that_ends_without_stopping_the_sink_leaves_no_server(ending):
         assert m, line + (program.stderr.read() if program.poll() is not None else '')
         port, pid = int(m.group(1)), int(m.group(2))
         if ending.startswith('SIG'):
-            assert _running(pid)
+            assert process_running(pid)
             program.send_signal(getattr(signal, ending))
         returncode = program.wait(timeout=30)
     finally:
@@ -286,9 +278,9 @@ def test_a_program_that_ends_without_stopping_the_sink_leaves_no_server(ending):
     else:
         assert returncode != 0
     deadline = time.monotonic() + 5.0
-    while _running(pid) and time.monotonic() < deadline:
+    while process_running(pid) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert not _running(pid), 'the server %d outlived its program (%s)' % (pid, ending)
+    assert not process_running(pid), 'the server %d outlived its program (%s)' % (pid, ending)
     probe = socket.socket()
     try:
         assert probe.connect_ex(('127.0.0.1', port)) != 0, 'a server still on %d' % port
