@@ -104,15 +104,12 @@ def pytest_collection_modifyitems(config, items):
     And put LONGEST_FIRST's files first, in that order (the others keep theirs).
     """
     here = os.path.dirname(os.path.abspath(__file__))
-
-    def rank(item):
-        where = os.path.relpath(str(item.path), here).replace(os.sep, '/')
-        return LONGEST_FIRST.index(where) if where in LONGEST_FIRST else len(LONGEST_FIRST)
-    items.sort(key=rank)
+    where = {item: os.path.relpath(str(item.path), here).replace(os.sep, '/') for item in items}
+    items.sort(key=lambda item: LONGEST_FIRST.index(where[item])
+               if where[item] in LONGEST_FIRST else len(LONGEST_FIRST))
     for item in items:
-        where = os.path.relpath(str(item.path), here)
-        if where.split(os.sep)[0] in SERIAL_FOLDERS or where in SERIAL_FILES:
+        if where[item].split('/')[0] in SERIAL_FOLDERS or where[item] in SERIAL_FILES:
             item.add_marker(pytest.mark.serial)
-        quiet = QUIET.get(where.replace(os.sep, '/'))
+        quiet = QUIET.get(where[item])
         if quiet is not None and (not quiet or item.originalname in quiet):
             item.add_marker(pytest.mark.quiet)
