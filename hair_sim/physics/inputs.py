@@ -7,6 +7,7 @@ dtype=np.int64) cuts 1.5 to 1. Each of these is a caller's mistake the simulator
 then run with; here they are refused.
 """
 
+import math
 import numbers
 
 import numpy as np
@@ -48,13 +49,28 @@ def index_array(value, shape, what):
                          % (what, shape, a.shape)) from None
 
 
+def shown(value, limit=80):
+    """Return repr(value) for a message, cut to `limit` characters with '...' if longer."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + '...'
+
+
 def real_number(value, what):
-    """Return value as a float; raise ValueError unless it is an int or float (not a flag)."""
+    """
+    Return value as a float; raise ValueError unless it is an int or float (not a flag).
+
+    An int past a float's range comes back as the infinity of its sign, which the caller's
+    finiteness check refuses with its own reason (float() raised OverflowError: a step of
+    10**400 s, a turbulence of 10**400 or a pose stamped so escaped as that, not refused).
+    """
     if type(value) is float:            # (the common case, without the ABC's check)
         return value
     if not isinstance(value, numbers.Real) or isinstance(value, (bool, np.bool_)):
-        raise ValueError('%s must be a number, not %r' % (what, value))
-    return float(value)
+        raise ValueError('%s must be a number, not %s' % (what, shown(value)))
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf if value > 0 else -math.inf
 
 
 def integer(value, what):

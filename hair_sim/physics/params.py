@@ -10,6 +10,7 @@ import numbers
 
 import numpy as np
 
+from hair_sim.physics.inputs import real_number, shown
 from hair_sim.physics.motion import TELEPORT_ANGLE, TELEPORT_DISTANCE
 
 # name: (low, high) inclusive ranges; the node declares the same ranges to ROS.
@@ -211,10 +212,7 @@ class PhysicsParams:
         for f in fields(self):
             v = getattr(self, f.name)
             if f.name in RANGES and _is_number(v):
-                try:
-                    setattr(self, f.name, float(v))
-                except OverflowError:             # an int past float's range: refused
-                    setattr(self, f.name, math.inf if v > 0 else -math.inf)
+                setattr(self, f.name, real_number(v, f.name))   # (past float's range: inf)
             elif f.type in ('bool', bool) and isinstance(v, np.bool_):
                 setattr(self, f.name, bool(v))
 
@@ -225,16 +223,17 @@ class PhysicsParams:
             if f.name in RANGES:
                 lo, hi = RANGES[f.name]
                 if not isinstance(v, float):
-                    raise ValueError('%s must be a number, not %r' % (f.name, v))
+                    raise ValueError('%s must be a number, not %s' % (f.name, shown(v)))
                 if not (math.isfinite(v) and lo <= v <= hi):
                     raise ValueError('%s = %r is outside [%g, %g]' % (f.name, v, lo, hi))
             elif f.type in ('bool', bool) and not isinstance(v, bool):
-                raise ValueError('%s must be true or false, not %r' % (f.name, v))
+                raise ValueError('%s must be true or false, not %s' % (f.name, shown(v)))
         if self.model not in MODELS:
-            raise ValueError('model must be one of %s, not %r' % (', '.join(MODELS), self.model))
+            raise ValueError('model must be one of %s, not %s'
+                             % (', '.join(MODELS), shown(self.model)))
         if self.integrator not in INTEGRATORS:
-            raise ValueError('integrator must be one of %s, not %r'
-                             % (', '.join(INTEGRATORS), self.integrator))
+            raise ValueError('integrator must be one of %s, not %s'
+                             % (', '.join(INTEGRATORS), shown(self.integrator)))
         return self
 
     def replaced(self, **changes):

@@ -16,7 +16,7 @@ import numpy as np
 from hair_sim.modeling.head import MAX_SPHERES
 from hair_sim.modeling.strips import build_strips
 from hair_sim.physics import forces as F
-from hair_sim.physics.inputs import index_array, real_array, real_number
+from hair_sim.physics.inputs import index_array, real_array, real_number, shown
 from hair_sim.physics.motion import filter_head_motion, HeadMotion, quat_to_matrix
 from hair_sim.physics.multirate import multirate_substep
 from hair_sim.physics.params import PhysicsParams
@@ -1081,12 +1081,13 @@ def _step_length(dt):
     then passed, as nothing compares true with NaN. A string is no step either: step('0.1')
     stepped 0.1 s and then raised a TypeError, the state changed by a call that failed.
     Steps of 1e-200 s and below put the thesis model's velocities, (x - x-) / h, out of
-    range: SimulationDiverged, and the hair put back at its rest shape.)
+    range: SimulationDiverged, and the hair put back at its rest shape. An int past a
+    float's range raised OverflowError.)
     """
     try:
         h = math.nan if isinstance(dt, (str, bytes, bytearray)) else float(dt)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         h = math.nan
     if not (math.isfinite(h) and MIN_DT <= h <= MAX_DT):
-        raise ValueError('dt must be in [%g, %g] s, not %r' % (MIN_DT, MAX_DT, dt))
+        raise ValueError('dt must be in [%g, %g] s, not %s' % (MIN_DT, MAX_DT, shown(dt)))
     return h

@@ -15,6 +15,9 @@ from hair_sim import DEFAULT_DT, HairSimulator
 from hair_sim.bench import hanging
 from hair_sim.physics.wind import Wind
 
+# ints past a float's range (named so in test ids): float() raises OverflowError
+HUGE = pytest.param(10 ** 400, id='10**400')
+HUGE_NEGATIVE = pytest.param(-10 ** 400, id='-10**400')
 NOT_NUMBERS = [None, 'x', '0.5', b'1', True, np.bool_(True), 1 + 2j, object(), {'a': 1}]
 NOT_VECTORS = [None, 'xyz', ['1', '2', '3'], [1, 2], [1, 2, 3, 4, 5], [[1, 2], [3]],
                np.array([1 + 1j, 2, 3]), [1, None, 3], [True, False, True],
@@ -56,9 +59,15 @@ def test_a_wind_that_is_no_velocity_is_refused_whole(moving, bad):
 
 
 @pytest.mark.parametrize('field', ['turbulence', 'seed'])
-@pytest.mark.parametrize('bad', NOT_NUMBERS + [math.inf, math.nan, 1.5, [3]])
+@pytest.mark.parametrize('bad', NOT_NUMBERS + [math.inf, math.nan, 1.5, [3], HUGE])
 def test_a_turbulence_or_seed_that_is_no_number_is_refused_whole(moving, field, bad):
-    """Refused, and nothing set (before, a bad seed raised after the velocity was set)."""
+    """
+    Refused, and nothing set (before, a bad seed raised after the velocity was set).
+
+    A turbulence of 10 ** 400 raised OverflowError (a seed that size is a whole number).
+    """
+    if field == 'seed' and type(bad) is int and bad > 2 ** 64:
+        pytest.skip('10 ** 400 is a seed (taken modulo 2 ** 32)')
     if field == 'turbulence' and isinstance(bad, float) and math.isfinite(bad):
         pytest.skip('1.5 is a turbulence (clamped to 1)')
     before = _state(moving)
@@ -83,8 +92,9 @@ def test_whole_numbers_of_any_kind_are_seeds(moving, seed):
 
 
 @pytest.mark.parametrize('where', ['stamp', 'position', 'quaternion'])
-@pytest.mark.parametrize('bad', NOT_NUMBERS + NOT_VECTORS)
+@pytest.mark.parametrize('bad', NOT_NUMBERS + NOT_VECTORS + [HUGE, HUGE_NEGATIVE])
 def test_a_pose_that_is_not_numbers_is_invalid(moving, where, bad):
+    """Counted invalid and ignored (a stamp of 10 ** 400 s raised OverflowError)."""
     before = _state(moving)
     pose = {'stamp': moving.time + 0.01, 'position': [0.0, 0.0, 0.01],
             'quaternion': [0.0, 0.0, 0.0, 1.0]}
@@ -121,3 +131,18 @@ def test_pairs_of_whole_floats_and_rests_of_integers_are_taken():
     np.testing.assert_array_equal(sim.pairs, [[0, 1], [1, 2]])
     with pytest.raises(ValueError, match='rest strands must be real numbers'):
         HairSimulator.from_strands(rest.astype(complex), hanging.head_model())
+
+
+@pytest.mark.parametrize('call', ['step', 'turbulence', 'param'])
+def test_a_refusal_quotes_a_long_value_cut_short(moving, call):
+    """A megabyte string is named in 80 characters, cut with '...', not copied whole."""
+    bad = 'x' * 2 ** 20
+    with pytest.raises(ValueError) as refused:
+        if call == 'step':
+            moving.step(bad)
+        elif call == 'turbulence':
+            moving.set_wind([1.0, 0.0, 0.0], turbulence=bad)
+        else:
+            moving.set_params(damping=bad)
+    message = str(refused.value)
+    assert message.endswith("xxx...") and len(message) < 140, message[:200]

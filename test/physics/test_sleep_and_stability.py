@@ -11,6 +11,9 @@ from hair_sim.render import HairRenderer
 from hair_sim.bench.scenarios import drive, violent
 
 STYLES = [paths.shipped_style(n) for n in paths.shipped_style_names()]
+# ints past a float's range (named so in test ids): float() raises OverflowError
+HUGE = pytest.param(10 ** 400, id='10**400')
+HUGE_NEGATIVE = pytest.param(-10 ** 400, id='-10**400')
 
 
 @pytest.mark.parametrize('path', STYLES, ids=os.path.basename)
@@ -155,11 +158,13 @@ def test_params_and_step_change_together_or_not_at_all(long_style):
 
 
 @pytest.mark.parametrize('dt', [float('nan'), float('inf'), 0.0, -1.0 / 60, 0.5, 'fast',
-                                '0.01', b'0.01', 1e-300, 5e-324, 1e-7])
+                                '0.01', b'0.01', 1e-300, 5e-324, 1e-7, HUGE,
+                                HUGE_NEGATIVE])
 def test_a_step_that_is_no_step_is_refused_and_the_checks_stay_on(long_style, dt):
     # (before: set_params(step_dt=nan) and plan_step(nan) were accepted, and every later
     # stability check then passed, as nothing compares true with NaN; step('0.01') stepped
-    # and then raised a TypeError; a step of 1e-300 s diverged and reset the hair)
+    # and then raised a TypeError; a step of 1e-300 s diverged and reset the hair; a step
+    # of 10 ** 400 s raised OverflowError)
     sim = HairSimulator(long_style, integrator='explicit')
     before = sim.strand_positions().copy()
     with pytest.raises(ValueError, match='dt must be'):
