@@ -17,6 +17,7 @@ and the renderer. Its boundary holds against careless and hostile pipelines:
 
 import argparse
 from collections import Counter, deque
+import errno
 import functools
 import math
 import os
@@ -715,7 +716,16 @@ class HairSimNode(Node):
         def save(job):
             path = resolve_save_path(target, dirs, overwrite)
             style = self._latest_style()
-            save_hairstyle(style, path)
+            try:
+                save_hairstyle(style, path)
+            except OSError as exc:
+                if exc.errno not in (errno.EACCES, errno.EPERM, errno.EROFS):
+                    raise
+                # (the parameter is what a user can change: a pip install into a root-owned
+                # venv keeps the shipped folder, the only one by default, read-only)
+                raise OSError(exc.errno, '%s; this node may not write in that folder: list '
+                              'one it may first in hairstyle_dirs (a new style goes to the '
+                              'first that is not the shipped folder)' % exc.strerror) from exc
             return None, None, 'saved %s to %s' % (style.name, path)
         return await self._answer('save_hairstyle', save, response)
 

@@ -70,6 +70,37 @@ def test_paths_stay_inside_the_hairstyle_directories(node_env, tmp_path):
     assert r.success and (tmp_path / 'inside.yaml').is_file()
 
 
+def test_a_save_to_a_folder_the_node_may_not_write_names_the_parameter_to_change(
+        node_env, tmp_path):
+    """
+    Refused with the parameter a user can change, counted; saved once it lists a writable one.
+
+    A pip install into a root-owned venv keeps the shipped folder, the only one by default,
+    read-only: the refusal said "Permission denied" and nothing of hairstyle_dirs. /sys
+    takes no new file even from root, so it stands in for such a folder here.
+    """
+    from rclpy.parameter import Parameter
+    from hair_sim_msgs.srv import SaveHairstyle
+    _, ex, node, client = node_env
+
+    def save():
+        return call(ex, client, SaveHairstyle, '/hair_sim/save_hairstyle',
+                    SaveHairstyle.Request(path='mine'))
+
+    assert node.set_parameters([Parameter('hairstyle_dirs',
+                                          value=['', '/sys', str(tmp_path)])])[0].successful
+    refused = node.refused['save_hairstyle']
+    r = save()
+    assert not r.success and 'Permission denied' in r.message, r.message
+    assert 'hairstyle_dirs' in r.message and 'nothing written' in r.message, r.message
+    assert node.refused['save_hairstyle'] == refused + 1
+    assert not os.path.exists('/sys/mine.yaml')
+    assert node.set_parameters([Parameter('hairstyle_dirs',
+                                          value=['', str(tmp_path), '/sys'])])[0].successful
+    r = save()
+    assert r.success and (tmp_path / 'mine.yaml').is_file(), r.message
+
+
 def test_a_save_replaces_a_file_only_when_asked_and_never_a_shipped_style(node_env, tmp_path):
     """
     A save refuses an existing file unless told to overwrite it, and any shipped style.
