@@ -39,7 +39,7 @@ from numba import njit
 from numba.core import config as numba_config
 from numba.misc.appdirs import AppDirs
 
-_PKG_DIR = os.path.dirname(os.path.abspath(__file__))
+from hair_sim.paths import PACKAGE_DIR
 
 
 def _can_cache_in(path):
@@ -74,7 +74,7 @@ def use_private_cache_dir():
     if numba_config.CACHE_DIR:
         return None
     user_cache = AppDirs(appname='numba', appauthor=False).user_cache_dir
-    if _can_cache_in(os.path.join(_PKG_DIR, '__pycache__')) or _can_cache_in(user_cache):
+    if _can_cache_in(os.path.join(PACKAGE_DIR, '__pycache__')) or _can_cache_in(user_cache):
         return None
     path = os.path.join(tempfile.gettempdir(), 'hair_sim-numba-%d' % os.getuid())
     try:

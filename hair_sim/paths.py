@@ -10,7 +10,7 @@ import functools
 from importlib import metadata
 import os
 
-_PKG_DIR = os.path.dirname(os.path.abspath(__file__))
+PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__))   # (numba caches kernels beside it)
 _SHARE_CONFIG = ('share', 'hair_sim', 'config')
 
 
@@ -40,7 +40,7 @@ def _installed_config():
             continue
         candidates += [os.path.dirname(os.path.realpath(dist.locate_file(f))) for f in files
                        if f.name == 'hair_sim.yaml' and tuple(f.parts[-4:-1]) == _SHARE_CONFIG]
-        candidates.append(os.path.join(os.path.dirname(_PKG_DIR), *_SHARE_CONFIG))
+        candidates.append(os.path.join(os.path.dirname(PACKAGE_DIR), *_SHARE_CONFIG))
     for found in candidates:
         if os.path.isdir(os.path.join(found, 'hairstyles')):
             return found
@@ -49,7 +49,7 @@ def _installed_config():
 
 def config_dir():
     """Return the directory holding hair_sim.yaml, heads/ and hairstyles/."""
-    tree = os.path.join(os.path.dirname(_PKG_DIR), 'config')
+    tree = os.path.join(os.path.dirname(PACKAGE_DIR), 'config')
     if os.path.isdir(os.path.join(tree, 'hairstyles')):
         return tree
     installed = _installed_config()
