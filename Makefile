@@ -61,12 +61,14 @@ $(STAMP_WARM): $(STAMP_PKG) $(STAMP_MSGS) $(PY_SRCS)
 # nodes and servers, two files at once (a ROS domain to a worker); then its QUIET ones,
 # which time rates, latencies or frames against a floor, one at a time on a machine of
 # their own. Every pass runs even when one before it failed, so one run reports every
-# failure; the target fails if any did. `pytest test` still runs everything in one process.
+# failure; the target fails if any did. Each prints its ten slowest tests (a slow CI run
+# shows where its time went). `pytest test` still runs everything in one process.
 test: setup
-	$(PY) -m pytest -n 2 --dist loadscope --no-loadscope-reorder -m "not serial" test; shared=$$?; \
+	$(PY) -m pytest -n 2 --dist loadscope --no-loadscope-reorder -m "not serial" \
+		--durations=10 test; shared=$$?; \
 	$(PY) -m pytest -n 2 --dist loadscope --no-loadscope-reorder -m "serial and not quiet" \
-		test; paired=$$?; \
-	$(PY) -m pytest -m quiet test; alone=$$?; \
+		--durations=10 test; paired=$$?; \
+	$(PY) -m pytest -m quiet --durations=10 test; alone=$$?; \
 	exit $$(( shared != 0 ? shared : paired != 0 ? paired : alone ))
 
 # The node with the sample style, a scripted head and wind, in meshcat: prints the URL.
