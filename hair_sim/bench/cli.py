@@ -166,8 +166,8 @@ def main(argv=None):
             emit(smap, False, 'stability map')
         if failed:
             print('stress: %d promised case(s) failed: %s' % (len(failed), ', '.join(
-                '%s/%s/%s/dt=1/%d' % (r['case'], r['model'], r['integrator'],
-                                      round(1 / r['dt']))
+                '%s/%s/%s/dt=1/%d (%s)' % (r['case'], r['model'], r['integrator'],
+                                           round(1 / r['dt']), '; '.join(r['failed_on']))
                 for r in failed)), file=sys.stderr)
             return 1
     return 0

@@ -219,10 +219,37 @@ def test_stress_quick(tmp_path, command):
     assert rc == 0 and data['promised_failures'] == 0
     case = data['cases'][0]
     assert {'case', 'integrator', 'dt', 'promised', 'nan_steps', 'max_penetration_m',
-            'max_length_drift', 'peak_kinetic_energy_j', 'slept', 'woke', 'passed'} <= set(case)
+            'max_length_drift', 'peak_kinetic_energy_j', 'slept', 'woke', 'passed',
+            'failed_on'} <= set(case)
+    assert all(c['passed'] == (c['failed_on'] == []) for c in data['cases'])
     assert any(not c['promised'] for c in data['cases'])    # the unstable ones are tried too
     assert {r['integrator'] for r in data['stability_map']} == {'explicit', 'implicit'}
     assert os.path.isfile(tmp_path / 'stability_map.png')
+
+
+def test_a_failed_stress_case_says_what_it_failed_on(monkeypatch, capsys, tmp_path):
+    """
+    The exit message names each promised case that failed and why, in words.
+
+    It named the case alone, so the articulated model's 2 gale failures read like a
+    blow-up; they fail on the 4 s sleep window only. Here a window too short to settle in
+    (0.05 s) fails a case that passes with the bench's own: on the sleep and the drain,
+    which that window ends, and on nothing else.
+    """
+    from hair_sim import load_hairstyle, paths
+    from hair_sim.bench import cli, stress
+    style = load_hairstyle(paths.shipped_style('thesis_long'))
+    record = stress.run_case('shake', 'implicit', 1 / 240, True, style)
+    assert record['promised'] and record['passed'] and record['failed_on'] == [], record
+    monkeypatch.setattr(stress, 'SETTLE_WINDOW_S', 0.05)
+    record = stress.run_case('shake', 'implicit', 1 / 240, True, style)
+    assert not record['passed'], record
+    assert record['failed_on'] == ['energy not drained',
+                                   'not asleep 0.05 s after the head and wind stopped'], record
+    monkeypatch.setattr(stress, 'run', lambda *args: ([record], [], [record]))
+    assert cli.main(['stress', '--quick', '--plots', str(tmp_path)]) == 1
+    assert 'shake/anjyo/implicit/dt=1/240 (energy not drained; not asleep 0.05 s after ' \
+        'the head and wind stopped)' in capsys.readouterr().err
 
 
 def test_settle_quick(tmp_path):
