@@ -51,7 +51,10 @@ def index_array(value, shape, what):
 
 def shown(value, limit=80):
     """Return repr(value) for a message, cut to `limit` characters with '...' if longer."""
-    text = repr(value)
+    try:
+        text = repr(value)
+    except ValueError:                  # an int of more than sys.get_int_max_str_digits()
+        return 'an int of %d bits' % value.bit_length()
     return text if len(text) <= limit else text[:limit - 3] + '...'
 
 

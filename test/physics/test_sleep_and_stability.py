@@ -14,6 +14,7 @@ STYLES = [paths.shipped_style(n) for n in paths.shipped_style_names()]
 # ints past a float's range (named so in test ids): float() raises OverflowError
 HUGE = pytest.param(10 ** 400, id='10**400')
 HUGE_NEGATIVE = pytest.param(-10 ** 400, id='-10**400')
+UNPRINTABLE = pytest.param(10 ** 5000, id='10**5000')     # (repr raises: over 4300 digits)
 
 
 @pytest.mark.parametrize('path', STYLES, ids=os.path.basename)
@@ -159,7 +160,7 @@ def test_params_and_step_change_together_or_not_at_all(long_style):
 
 @pytest.mark.parametrize('dt', [float('nan'), float('inf'), 0.0, -1.0 / 60, 0.5, 'fast',
                                 '0.01', b'0.01', 1e-300, 5e-324, 1e-7, HUGE,
-                                HUGE_NEGATIVE])
+                                HUGE_NEGATIVE, UNPRINTABLE])
 def test_a_step_that_is_no_step_is_refused_and_the_checks_stay_on(long_style, dt):
     # (before: set_params(step_dt=nan) and plan_step(nan) were accepted, and every later
     # stability check then passed, as nothing compares true with NaN; step('0.01') stepped
