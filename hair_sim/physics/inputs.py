@@ -54,6 +54,8 @@ def shown(value, limit=80):
     try:
         text = repr(value)
     except ValueError:                  # an int of more than sys.get_int_max_str_digits()
+        if not isinstance(value, int):  # (any other repr's own error is the caller's)
+            raise
         return 'an int of %d bits' % value.bit_length()
     return text if len(text) <= limit else text[:limit - 3] + '...'
 
