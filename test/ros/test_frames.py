@@ -163,89 +163,115 @@ def test_a_first_pose_handled_late_does_not_delay_the_hair_for_good(node_env):
     assert node.pose_lead.slewed < 0.2 + 1.0 / 60.0 + 1.0 / 240.0, node.pose_lead.slewed
 
 
-def _replay_tips(style, params, poses, stamps, dt):
+def _replay_tips(style, params, moves):
     """
-    Return the tips (n, strands, 3) of the hair driven by `poses`, at `stamps` (s).
+    Return the tips (steps, strands, 3) after each step of `moves`, replayed offline.
 
-    `poses` are (stamp, position, quaternion) as the node's simulator was given them; each
-    is given here well before the simulator's clock reaches it, so the head is
-    interpolated between poses all along: the hair a tracker's poses call for.
+    `moves` is what the node's simulator did, in order: ('pose', (stamp, position,
+    quaternion)) given, ('step', s simulated) and ('skip', s the pose clock moved: time
+    dropped under load, or the node's slew).
     """
     from hair_sim import HairSimulator
     sim = HairSimulator(style, **asdict(params))
-    t0 = poses[0][0]
-    k, times, tips = 0, [], []
-    while sim.time < stamps[-1] - t0 + dt:
-        while k < len(poses) and poses[k][0] - t0 <= sim.time + 0.1:
-            sim.set_head_pose(poses[k][0] - t0, *poses[k][1:])
-            k += 1
-        sim.step(dt)
-        times.append(sim.time)
-        tips.append(sim.strand_positions()[:, -1].copy())
-    times, tips = np.array(times), np.array(tips)
-    j = np.clip(np.searchsorted(times, stamps - t0), 1, len(times) - 1)
-    f = ((stamps - t0 - times[j - 1]) / (times[j] - times[j - 1]))[:, None, None]
-    return tips[j - 1] + f * (tips[j] - tips[j - 1])
+    tips = []
+    for kind, what in moves:
+        if kind == 'pose':
+            sim.set_head_pose(*what)
+        elif kind == 'skip':
+            sim.shift_pose_clock(what)
+        else:
+            sim.step(what)
+            tips.append(sim.strand_positions()[:, -1].copy())
+    return np.array(tips)
 
 
 @pytest.mark.parametrize('interpolate', [True, False])
 def test_the_hair_feels_a_live_trackers_head_move_between_its_poses(node_env, interpolate):
     """
-    A tracker's poses, sent as they are taken, move the hair as the same poses interpolated do.
+    A tracker's poses, sent as they are taken, are interpolated, not held and jumped.
 
     A live tracker (30 Hz, its own process, a smooth turn) stamps each pose with the time
     it describes, so the pose lands as the simulator's clock reaches it; the head was then
     held at the newest pose until the next landed: the hair felt a head that stood still
     and jumped, and its tips ended 3 mm RMS from where the same poses, interpolated, put
     them (measured from outside, 2026-12-01). With `interpolate_poses` (the default) the
-    node follows the poses a pose interval later, and the tips are where an offline
-    replay of the poses it took, each given well ahead, puts them. Without it the hair
-    follows the newest pose at once: a message carries the stamp of the newest pose the
-    node had as it stamped it.
+    node follows the poses a pose interval later: after the slew has settled, the head is
+    between two poses it has at the end of at least 3 steps in 4 (all of them on an idle
+    machine, 89-100 % with eight busy processes on two cores; with the option off, or
+    before it was made, 96-100 % of the steps end held). The hair it publishes is what an
+    offline simulator given the same poses, steps and pose-clock moves (time dropped under
+    load, the slew) computes. (This test compared the tips with a replay that gave every
+    pose ahead and dropped no time: on a loaded machine, CI's, the node rightly dropped
+    time and some poses landed late, and the tips were 1.5-2.6 mm off.) Without the
+    option the hair follows the newest pose at once: a message carries the stamp of the
+    newest pose the node had as it stamped it.
     """
     from hair_sim_msgs.msg import HairState
     _, ex, node, client = node_env
     assert node.set_parameters([Parameter('interpolate_poses', value=interpolate)])[0].successful
-    poses, stamped, got = [], [], []
-    give, stamp_at = node.sim.set_head_pose, node.sim.stamp_at
+    sim, motion = node.sim, node.sim.motion
+    stamped, got, moves, held, after = [], [], [], [], {}
+    give, stamp_at, step, skip = sim.set_head_pose, sim.stamp_at, sim.step, motion.skip
 
     def record(stamp, position, quaternion):
-        poses.append((stamp, position, quaternion))
+        moves.append(('pose', (stamp, position, quaternion)))
         return give(stamp, position, quaternion)
 
     def stamp_and_newest(t=None):
         # (the newest pose as the node stamps a message: by the time this process's
         # subscription takes the message, the node may have taken the next pose)
-        stamp = stamp_at(t)
-        stamped.append((stamp, node.sim.motion.newest_stamp))
+        stamp, newest = stamp_at(t), motion.newest_stamp
+        stamped.append((stamp, newest))
+        if t is None and stamp is not None and stamp < newest:
+            after[round(stamp, 6)] = len(held)     # (a held stamp may repeat: not kept)
         return stamp
-    node.sim.set_head_pose, node.sim.stamp_at = record, stamp_and_newest
+
+    def skip_and_note(seconds):
+        if moves:
+            moves.append(('skip', seconds))
+        return skip(seconds)
+
+    def step_and_note(dt):
+        k, t = len(moves), sim.time
+        try:
+            return step(dt)
+        finally:
+            if moves:   # (before the skip a cut step makes as it ends)
+                moves.insert(k, ('step', sim.time - t))
+                ahead = sim.time + motion.offset
+                held.append((ahead, ahead > motion.newest_stamp + 1e-9))
+    sim.set_head_pose, sim.stamp_at, sim.step, motion.skip = \
+        record, stamp_and_newest, step_and_note, skip_and_note
     client.create_subscription(
         HairState, 'hair_state',
         lambda m: got.append((m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec,
                               np.array(m.positions).reshape(m.n_strands, -1, 3)[:, -1])), 50)
     tracker = start_helper('smooth_tracker.py', 30.0, stdout=None)
     try:
-        assert spin_until(ex, lambda: len(poses) > 8 * 30, 60.0), len(poses)
+        assert spin_until(ex, lambda: sum(kind == 'pose' for kind, _ in moves) > 8 * 30, 60.0)
     finally:
         tracker.kill()
         tracker.wait()
-    assert node.sim.motion.counts['clock_jump'] == 0
+    assert node.sim.motion is motion and motion.counts['clock_jump'] == 0
+    first = next(what for kind, what in moves if kind == 'pose')
     # from 3 s after the first pose on (the slew has settled; the start has died away)
-    settled = poses[0][0] + 3.0
+    settled = first[0] + 3.0
     kept = [(s, tip) for s, tip in got if s > settled]
     assert len(kept) > 100, len(kept)
     lag = np.array([newest - s for s, newest in stamped if s is not None and s > settled])
+    held_share = np.mean([h for ahead, h in held if ahead > settled])
     if not interpolate:
         assert np.median(lag) < 0.005, np.median(lag)
+        assert held_share > 0.5, held_share
         return
     assert 0.0 <= np.median(lag) < 0.1, np.median(lag)       # at most MAX_BUFFER
-    stamps = np.array([s for s, _ in kept])
-    tips = np.array([tip for _, tip in kept])
-    replayed = _replay_tips(node.sim.style, node.sim.params, poses, stamps,
-                            1.0 / node.get_parameter('sim_rate').value)
-    off_mm = 1e3 * np.sqrt(((tips - replayed) ** 2).sum(-1).mean())
-    assert off_mm < 1.0, off_mm
+    assert held_share < 0.25, held_share
+    replayed = _replay_tips(sim.style, sim.params, moves)
+    matched = [(tip, after[round(s, 6)]) for s, tip in kept if round(s, 6) in after]
+    assert len(matched) > 0.5 * len(kept), (len(matched), len(kept))
+    off_mm = 1e3 * np.sqrt(np.mean([((tip - replayed[n - 1]) ** 2).sum(-1).mean()
+                                    for tip, n in matched]))
+    assert off_mm < 1e-3, off_mm       # (float32 positions: 0.06 um at 1 m)
 
 
 def test_head_transform_matches_the_pose():
