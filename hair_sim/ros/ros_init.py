@@ -7,12 +7,38 @@ a full or read-only disk), rclpy.init raised "failed to initialize logging", and
 program ended at start with a traceback. Here the programs start again without the log
 files (ROS's --disable-external-lib-logs): the console gets every line as before, and one
 line says why there are no files and what to set.
+
+A ROS_DOMAIN_ID over FAST_DDS_MAX_DOMAIN is refused before ROS starts, in one line: Fast DDS
+ended the program itself (exit code 1, from inside the node's creation) with only its own
+"Calculated port number is too high" and no word of which program or setting.
 """
 
 import os
 import sys
 
 import rclpy
+
+# Fast DDS maps a domain to UDP ports 7400 + 250 * domain (and a few more): past 232 they
+# are over 65535, and it ends the program (233 did, 232 ran, measured with hair_sim_node)
+FAST_DDS_MAX_DOMAIN = 232
+
+
+def domain_problem(environ=os.environ):
+    """
+    Return why ROS_DOMAIN_ID cannot be used with this RMW, or None.
+
+    Only a number past what Fast DDS (ROS 2 Jazzy's default RMW) takes is said here; any
+    other value is left to rcl, which says what is wrong with it.
+    """
+    value = environ.get('ROS_DOMAIN_ID', '').strip()
+    if not value.isdigit() or int(value) <= FAST_DDS_MAX_DOMAIN:
+        return None
+    rmw = rclpy.get_rmw_implementation_identifier()
+    if not rmw.startswith('rmw_fastrtps'):
+        return None
+    return ('ROS_DOMAIN_ID is %s; %s (Fast DDS) takes 0 to %d, the domains whose UDP ports '
+            'are under 65536, and ROS 2 advises 0 to 101'
+            % (value if len(value) <= 20 else value[:20] + '...', rmw, FAST_DDS_MAX_DOMAIN))
 
 
 def init_ros(args=None):
@@ -25,10 +51,14 @@ def init_ros(args=None):
     cannot hold ~/.ros/log); rclpy.try_shutdown() replaces the default one.
 
     Any other failure ends the program with one line that says it (SystemExit): rcl's
-    RuntimeError came as a traceback, where ROS_DOMAIN_ID=abc, say, was its last line.
+    RuntimeError came as a traceback, where ROS_DOMAIN_ID=abc, say, was its last line; so
+    does a domain Fast DDS cannot take (domain_problem), before ROS starts.
     """
     argv = list(sys.argv if args is None else args)
     program = os.path.basename(argv[0]) if argv else 'hair_sim'
+    why = domain_problem()
+    if why:
+        raise SystemExit('%s: ROS could not start: %s' % (program, why))
     try:
         rclpy.init(args=args)
         return

@@ -840,20 +840,28 @@ def test_18_use_sim_time_with_no_clock_is_said_and_the_clock_s_start_too(live):
 
 # 19 --------------------------------------------------------------------------------
 @pytest.mark.parametrize('program', ['hair_sim_node', 'hair_sim_demo', 'hair_sim_head_driver'])
-def test_19_a_ros_that_cannot_start_is_said_in_one_line(program):
+@pytest.mark.parametrize('domain, reason', [
+    ('abc', 'failed to initialize rcl: ROS_DOMAIN_ID is not an integral number'),
+    ('233', 'ROS_DOMAIN_ID is 233; rmw_fastrtps_cpp (Fast DDS) takes 0 to 232, the domains '
+            'whose UDP ports are under 65536, and ROS 2 advises 0 to 101'),
+    ('9' * 400, 'ROS_DOMAIN_ID is %s...; rmw_fastrtps_cpp (Fast DDS) takes 0 to 232, the '
+                'domains whose UDP ports are under 65536, and ROS 2 advises 0 to 101'
+                % ('9' * 20))])
+def test_19_a_ros_that_cannot_start_is_said_in_one_line(program, domain, reason):
     """
-    ROS_DOMAIN_ID=abc (a typo in a shell profile): rcl cannot start.
+    ROS_DOMAIN_ID=abc (a typo in a shell profile), or a domain over 232: ROS cannot start.
 
-    Each program ended with rclpy's traceback, rcl's reason on its last line. It now ends
-    with one line naming the program and the reason, and exit code 1.
+    Each program ended with rclpy's traceback, rcl's reason on its last line; on a domain
+    over 232, Fast DDS ended it from inside the node's creation with its own "Calculated
+    port number is too high" and no word of the program or the setting. It now ends with
+    one line naming the program and the reason, and exit code 1.
     """
-    env = dict(os.environ, ROS_DOMAIN_ID='abc')
+    env = dict(os.environ, ROS_DOMAIN_ID=domain)
     done = subprocess.run([os.path.join(os.path.dirname(sys.executable), program)],
                           env=env, capture_output=True, text=True, timeout=60)
     assert done.returncode == 1, done
-    assert done.stderr.strip().splitlines() == [
-        '%s: ROS could not start: failed to initialize rcl: ROS_DOMAIN_ID is not an integral '
-        'number' % program], done.stderr
+    said = '%s: ROS could not start: %s' % (program, reason)
+    assert done.stderr.strip().splitlines() == [said], done.stderr
 
 
 # 20 --------------------------------------------------------------------------------
