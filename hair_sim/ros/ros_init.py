@@ -31,7 +31,7 @@ def domain_problem(environ=os.environ):
     other value is left to rcl, which says what is wrong with it.
     """
     value = environ.get('ROS_DOMAIN_ID', '').strip()
-    if not value.isdigit() or int(value) <= FAST_DDS_MAX_DOMAIN:
+    if not (value.isascii() and value.isdigit()) or int(value) <= FAST_DDS_MAX_DOMAIN:
         return None
     rmw = rclpy.get_rmw_implementation_identifier()
     if not rmw.startswith('rmw_fastrtps'):
