@@ -8,6 +8,11 @@ from hair_sim.physics.inputs import integer, real_array, real_number
 N_MODES = 8
 
 
+def _fresh(a, shape):
+    """Return a new, C-ordered, writeable float64 copy of `a`, of `shape`."""
+    return np.array(a, dtype=np.float64, order='C', copy=True).reshape(shape)
+
+
 class Wind:
     """Mean wind (m/s, world frame) and turbulence modes drawn from a seed."""
 
@@ -35,11 +40,15 @@ class Wind:
         self.mode_phase = rng.uniform(0, 2 * np.pi, N_MODES)
         # each mode's amplitude so that the gusts' rms per axis is turbulence * |v|
         self.amplitude = turbulence * float(np.linalg.norm(v)) * np.sqrt(2.0 * 3.0 / N_MODES)
-        # what the force kernel takes, built once per change
-        self.field = WindField(velocity=self.velocity, amplitude=self.amplitude,
-                               mode_dir=self.mode_dir,
-                               mode_k_by_axis=np.ascontiguousarray(self.mode_k.T),
-                               mode_w=self.mode_w, mode_phase=self.mode_phase,
+        # what the force kernel takes, built once per change, of the same types every time
+        # (fresh C-ordered float64 arrays and a float): the simulator's compiled steps are
+        # called with it without typing it again (HairSimulator.set_wind)
+        self.field = WindField(velocity=_fresh(self.velocity, (3,)),
+                               amplitude=float(self.amplitude),
+                               mode_dir=_fresh(self.mode_dir, (N_MODES, 3)),
+                               mode_k_by_axis=_fresh(self.mode_k.T, (3, N_MODES)),
+                               mode_w=_fresh(self.mode_w, (N_MODES,)),
+                               mode_phase=_fresh(self.mode_phase, (N_MODES,)),
                                scratch=np.zeros((2, N_MODES)))
         self._active = bool(np.any(self.velocity != 0.0))
 
