@@ -249,6 +249,78 @@ def gale(duration=10.0, speed=40.0, turbulence=1.0):
                 p.kill()
 
 
+def wind_stream(duration=10.0, rates=(0.0, 60.0, 240.0)):
+    """
+    Measure what a stream of wind messages costs the node, from outside.
+
+    One node (thesis_long, shipped parameters, no meshcat) and its head driver (its gusts
+    remapped away); for each rate, this process publishes a changing wind (2-3 m/s, gusts
+    of turbulence 0.3) at that rate (0: one such wind, at the start, that then blows on)
+    while a probe process records over `duration`: the node process's CPU share over the
+    window, hair_state's rate and p95 latency, the poses accepted and the time dropped.
+    Until 2026-12-02 a wind change made the next step type every kernel argument again
+    (0.6 ms more, at 1/240 s).
+    """
+    import math
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    from hair_sim.ros.ros_init import init_ros
+    from hair_sim_msgs.msg import Wind
+    node = subprocess.Popen(_node_cmd('/', False), stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    driver = subprocess.Popen([os.path.join(BIN, 'hair_sim_head_driver'), '--ros-args',
+                               '-r', 'wind:=driver_wind'],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    init_ros()
+    client = rclpy.create_node('hair_sim_bench_wind_stream')
+    ex = SingleThreadedExecutor()
+    ex.add_node(client)
+    pub = client.create_publisher(Wind, '/wind', 10)
+    out = []
+    try:
+        time.sleep(5.0)
+        proc = psutil.Process(node.pid)
+        for rate in rates:
+            probe = _probe(['/'], duration, 1.0, ['hair_state'], recording=True)
+            cpu0, wall0 = sum(proc.cpu_times()[:2]), time.monotonic()
+            sent, end, cpu = 0, wall0 + duration, None
+            while probe.poll() is None and time.monotonic() < end + 60.0:
+                now = time.monotonic()
+                if now < end and (sent < (now - wall0) * rate or not sent):
+                    w = Wind()
+                    w.velocity.x = 2.0 + math.sin(now)
+                    w.velocity.y = math.cos(0.7 * now)
+                    w.turbulence, w.seed = 0.3, 1
+                    pub.publish(w)
+                    sent += 1
+                if now >= end and cpu is None:
+                    cpu = (sum(proc.cpu_times()[:2]) - cpu0) / (now - wall0)
+                ex.spin_once(timeout_sec=0.0 if rate else 0.05)
+                if rate:
+                    time.sleep(max(0.0, wall0 + (sent + 1) / rate - time.monotonic()))
+            report = json.loads(probe.communicate(timeout=60)[0])['/']
+            r = report['hair_state']
+            out.append({'wind_hz': rate, 'sent': sent,
+                        'node_cpu_share': None if cpu is None else round(cpu, 3),
+                        'hair_state_hz': r['rate_hz'],
+                        'latency_ms_p95': r['latency_ms_p95'],
+                        'poses_accepted_share': report.get('poses_accepted_share'),
+                        'time_dropped_s': report.get('time_dropped_s')})
+        return out
+    finally:
+        ex.shutdown()
+        client.destroy_node()
+        rclpy.try_shutdown()
+        for p in (driver, node):
+            p.send_signal(2)
+            try:
+                p.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
 def run(quick=False, max_avatars=8):
     """Measure 1, 2, ... avatars until one fails its rates; then the load gap and a gale."""
     duration = 5.0 if quick else 10.0
@@ -266,4 +338,5 @@ def run(quick=False, max_avatars=8):
         out['avatars_sustained_at_30hz'] = sustained
         out['load_gap'] = load_gap(workdir)
     out['gale'] = gale(5.0 if quick else 10.0)
+    out['wind_stream'] = wind_stream(5.0 if quick else 10.0)
     return out
