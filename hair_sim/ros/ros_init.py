@@ -21,18 +21,25 @@ import rclpy
 # Fast DDS maps a domain to UDP ports 7400 + 250 * domain (and a few more): past 232 they
 # are over 65535, and it ends the program (233 did, 232 ran, measured with hair_sim_node)
 FAST_DDS_MAX_DOMAIN = 232
+# where Fast DDS reads an XML profile that may move its ports (portBase, domainIDGain)
+FAST_DDS_PROFILE_VARIABLES = ('FASTDDS_DEFAULT_PROFILES_FILE', 'FASTRTPS_DEFAULT_PROFILES_FILE')
+FAST_DDS_PROFILE_FILES = ('DEFAULT_FASTDDS_PROFILES.xml', 'DEFAULT_FASTRTPS_PROFILES.xml')
 
 
 def domain_problem(environ=os.environ):
     """
     Return why ROS_DOMAIN_ID cannot be used with this RMW, or None.
 
-    Only a number past what Fast DDS (ROS 2 Jazzy's default RMW) takes is said here; any
-    other value is left to rcl, which says what is wrong with it.
+    Only a number past what Fast DDS (ROS 2 Jazzy's default RMW) takes on its default
+    ports is said here, and not where an XML profile may move them; any other value is
+    left to rcl, which says what is wrong with it.
     """
     value = environ.get('ROS_DOMAIN_ID', '').strip()
     if not (value.isascii() and value.isdigit()) or int(value) <= FAST_DDS_MAX_DOMAIN:
         return None
+    if any(environ.get(name) for name in FAST_DDS_PROFILE_VARIABLES) or \
+            any(os.path.exists(name) for name in FAST_DDS_PROFILE_FILES):
+        return None     # (a profile may set other ports: Fast DDS judges them itself)
     rmw = rclpy.get_rmw_implementation_identifier()
     if not rmw.startswith('rmw_fastrtps'):
         return None

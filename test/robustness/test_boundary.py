@@ -864,6 +864,42 @@ def test_19_a_ros_that_cannot_start_is_said_in_one_line(program, domain, reason)
     assert done.stderr.strip().splitlines() == [said], done.stderr
 
 
+def test_19_a_domain_over_232_is_fast_dds_s_to_judge_where_a_profile_moves_its_ports(
+        tmp_path):
+    """
+    A Fast DDS XML profile that lowers domainIDGain: domain 250's ports are under 65536.
+
+    The check of test 19 would have refused a node that runs (measured: hair_state at 30 Hz
+    to a probe on the same profile). Where a profile is given, Fast DDS judges the domain.
+    """
+    profile = tmp_path / 'ports.xml'
+    profile.write_text(
+        '<?xml version="1.0" encoding="UTF-8" ?>\n'
+        '<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">\n'
+        '  <participant profile_name="small_gain" is_default_profile="true">\n'
+        '    <rtps><port><domainIDGain>200</domainIDGain></port></rtps>\n'
+        '  </participant>\n'
+        '</profiles>\n')
+    env = dict(os.environ, ROS_DOMAIN_ID='250', FASTRTPS_DEFAULT_PROFILES_FILE=str(profile))
+    log = open(tmp_path / 'node.log', 'w')
+    node = subprocess.Popen([os.path.join(os.path.dirname(sys.executable), 'hair_sim_node'),
+                             '--ros-args', '-p', 'meshcat.enabled:=false'],
+                            stdout=log, stderr=subprocess.STDOUT, env=env)
+    try:
+        probe = subprocess.run([sys.executable, '-m', 'hair_sim.bench.probe', '--duration',
+                                '2', '--topics', 'hair_state'], env=env, capture_output=True,
+                               text=True, timeout=120)
+        assert node.poll() is None, (tmp_path / 'node.log').read_text()[-2000:]
+    finally:
+        node.terminate()
+        node.wait(timeout=15)
+        log.close()
+    assert probe.returncode == 0, probe.stderr[-2000:]
+    report = json.loads(probe.stdout.strip().splitlines()[-1])
+    assert report['/']['hair_state']['rate_hz'] >= 24.0, report
+    assert 'could not start' not in (tmp_path / 'node.log').read_text()
+
+
 # 20 --------------------------------------------------------------------------------
 def test_20_a_node_started_on_a_clock_that_stands_still_sends_its_hair(tmp_path):
     """
