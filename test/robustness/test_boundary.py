@@ -867,10 +867,12 @@ def test_19_a_ros_that_cannot_start_is_said_in_one_line(program, domain, reason)
 def test_19_a_domain_over_232_is_fast_dds_s_to_judge_where_a_profile_moves_its_ports(
         tmp_path):
     """
-    A Fast DDS XML profile that lowers domainIDGain: domain 250's ports are under 65536.
+    A Fast DDS XML profile that lowers domainIDGain: domain 233's ports are under 65536.
 
     The check of test 19 would have refused a node that runs (measured: hair_state at 30 Hz
     to a probe on the same profile). Where a profile is given, Fast DDS judges the domain.
+    (7400 + 200 x 233 = 54000, between the default gain's domains 186 and 187, so no
+    other test's domain shares its ports.)
     """
     profile = tmp_path / 'ports.xml'
     profile.write_text(
@@ -880,7 +882,7 @@ def test_19_a_domain_over_232_is_fast_dds_s_to_judge_where_a_profile_moves_its_p
         '    <rtps><port><domainIDGain>200</domainIDGain></port></rtps>\n'
         '  </participant>\n'
         '</profiles>\n')
-    env = dict(os.environ, ROS_DOMAIN_ID='250', FASTRTPS_DEFAULT_PROFILES_FILE=str(profile))
+    env = dict(os.environ, ROS_DOMAIN_ID='233', FASTRTPS_DEFAULT_PROFILES_FILE=str(profile))
     log = open(tmp_path / 'node.log', 'w')
     node = subprocess.Popen([os.path.join(os.path.dirname(sys.executable), 'hair_sim_node'),
                              '--ros-args', '-p', 'meshcat.enabled:=false'],
