@@ -10,7 +10,8 @@ line says why there are no files and what to set.
 
 A ROS_DOMAIN_ID over FAST_DDS_MAX_DOMAIN is refused before ROS starts, in one line: Fast DDS
 ended the program itself (exit code 1, from inside the node's creation) with only its own
-"Calculated port number is too high" and no word of which program or setting.
+"Calculated port number is too high" and no word of which program or setting. Not where a
+Fast DDS XML profile is given: it may move the ports, and Fast DDS then judges the domain.
 """
 
 import os
