@@ -14,6 +14,7 @@ longest gap between hair_state messages while the largest style inside the frame
 loads.
 """
 
+import contextlib
 import json
 import os
 import subprocess
@@ -98,14 +99,7 @@ def run_avatars(k, duration, workdir):
         c = json.loads(browser.communicate(timeout=60)[0]) if browser else {}
         cpu = [n.cpu_percent(None) for n in nodes]
     finally:
-        for p in procs:
-            if p.poll() is None:
-                p.send_signal(2)
-        for p in procs:
-            try:
-                p.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        _stop(procs)
     records = []
     ok = True
     for i, ns in enumerate(namespaces):
@@ -178,6 +172,50 @@ def load_gap(workdir, duration=6.0):
         node.wait(timeout=15)
 
 
+def _stop(procs):
+    """Ctrl-C each of `procs` still running, then wait for them (15 s each, else kill)."""
+    for p in procs:
+        if p.poll() is None:
+            p.send_signal(2)
+    for p in procs:
+        try:
+            p.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            p.kill()
+
+
+@contextlib.contextmanager
+def _node_in_bench_wind(node_args, client_name):
+    """
+    Run a node (`node_args` after the shipped parameters, meshcat off) in a wind from here.
+
+    Its head driver runs beside it with its gusts remapped away; yields (the node's
+    process, an executor of a client node, that client's publisher on /wind), and stops
+    them all.
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    from hair_sim.ros.ros_init import init_ros
+    from hair_sim_msgs.msg import Wind
+    node = subprocess.Popen(_node_cmd('/', False) + list(node_args),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    driver = subprocess.Popen([os.path.join(BIN, 'hair_sim_head_driver'), '--ros-args',
+                               '-r', 'wind:=driver_wind'],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    init_ros()
+    client = rclpy.create_node(client_name)
+    ex = SingleThreadedExecutor()
+    ex.add_node(client)
+    try:
+        yield node, ex, client.create_publisher(Wind, '/wind', 10)
+    finally:
+        ex.shutdown()
+        client.destroy_node()
+        rclpy.try_shutdown()
+        _stop((driver, node))
+
+
 def gale(duration=10.0, speed=40.0, turbulence=1.0):
     """
     Measure the articulated model at 60 Hz in the strongest wind the node takes, from outside.
@@ -191,24 +229,10 @@ def gale(duration=10.0, speed=40.0, turbulence=1.0):
     gale's longest gap includes its onset: the hair at rest outruns its first step, and a
     retry not cut to the bound stopped the outputs for 155-240 ms there (2026-11-30).
     """
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-
-    from hair_sim.ros.ros_init import init_ros
     from hair_sim_msgs.msg import Wind
-    node = subprocess.Popen(_node_cmd('/', False) + ['-p', 'physics.model:=articulated',
-                                                     '-p', 'sim_rate:=60.0'],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    driver = subprocess.Popen([os.path.join(BIN, 'hair_sim_head_driver'), '--ros-args',
-                               '-r', 'wind:=driver_wind'],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    init_ros()
-    client = rclpy.create_node('hair_sim_bench_gale')
-    ex = SingleThreadedExecutor()
-    ex.add_node(client)
-    pub = client.create_publisher(Wind, '/wind', 10)
     out = {'speed_m_s': speed, 'turbulence': turbulence, 'phases': []}
-    try:
+    with _node_in_bench_wind(['-p', 'physics.model:=articulated', '-p', 'sim_rate:=60.0'],
+                             'hair_sim_bench_gale') as (_, ex, pub):
         time.sleep(5.0)
         for phase, wind in (('before', 0.0), ('gale', speed), ('after', 0.0)):
             w = Wind()
@@ -236,17 +260,7 @@ def gale(duration=10.0, speed=40.0, turbulence=1.0):
                 while time.monotonic() < end:
                     pub.publish(w)
                     ex.spin_once(timeout_sec=0.05)
-        return out
-    finally:
-        ex.shutdown()
-        client.destroy_node()
-        rclpy.try_shutdown()
-        for p in (driver, node):
-            p.send_signal(2)
-            try:
-                p.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                p.kill()
+    return out
 
 
 def wind_stream(duration=10.0, rates=(0.0, 60.0, 240.0)):
@@ -263,23 +277,9 @@ def wind_stream(duration=10.0, rates=(0.0, 60.0, 240.0)):
     """
     import math
 
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-
-    from hair_sim.ros.ros_init import init_ros
     from hair_sim_msgs.msg import Wind
-    node = subprocess.Popen(_node_cmd('/', False), stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
-    driver = subprocess.Popen([os.path.join(BIN, 'hair_sim_head_driver'), '--ros-args',
-                               '-r', 'wind:=driver_wind'],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    init_ros()
-    client = rclpy.create_node('hair_sim_bench_wind_stream')
-    ex = SingleThreadedExecutor()
-    ex.add_node(client)
-    pub = client.create_publisher(Wind, '/wind', 10)
     out = []
-    try:
+    with _node_in_bench_wind([], 'hair_sim_bench_wind_stream') as (node, ex, pub):
         time.sleep(5.0)
         proc = psutil.Process(node.pid)
         for rate in rates:
@@ -308,17 +308,7 @@ def wind_stream(duration=10.0, rates=(0.0, 60.0, 240.0)):
                         'latency_ms_p95': r['latency_ms_p95'],
                         'poses_accepted_share': report.get('poses_accepted_share'),
                         'time_dropped_s': report.get('time_dropped_s')})
-        return out
-    finally:
-        ex.shutdown()
-        client.destroy_node()
-        rclpy.try_shutdown()
-        for p in (driver, node):
-            p.send_signal(2)
-            try:
-                p.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                p.kill()
+    return out
 
 
 def run(quick=False, max_avatars=8):
