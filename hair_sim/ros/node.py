@@ -17,6 +17,7 @@ and the renderer. Its boundary holds against careless and hostile pipelines:
 
 import argparse
 from collections import Counter, deque
+import copy
 import errno
 import functools
 import math
@@ -197,6 +198,7 @@ class HairSimNode(Node):
             raise ValueError('physics parameters refused: %s' % exc) from None
         _read_display_mesh(style.head)
         self.scene = Scene(1, sim, HairRenderer.for_simulator(sim))
+        self._load_kernels()
         self._committed = 0               # seq of the last build job swapped in
         self._encoder = None
         self._encoder_key = None
@@ -273,6 +275,30 @@ class HairSimNode(Node):
         self.get_logger().info('hair_sim: %s, %d strips, %d strands x %d vertices'
                                % (style.name, strips.n_strips, strips.n_strands,
                                   strips.n_vertices))
+
+    def _load_kernels(self):
+        """
+        Take the first use of the frame's kernels before the node's clock starts.
+
+        numba loads a kernel's machine code from its cache at the kernel's first call: the
+        first two steps took 34-45 ms and the first mesh 31-41 ms, in the first frames of
+        a run, while the node's clock ran on. So in about half of the starts of `make demo`
+        the first frames moved the clock beyond max_steps_per_frame twice within a second,
+        and the node warned of dropped time before the hair had moved. Here a copy of the
+        simulator takes two steps and the copy's mesh is built (whole, and from the
+        viewpoint when one is set); the running scene is not touched. (A copy that diverges
+        has loaded what it reached; the running one then meets that in its frames, as any.)
+        """
+        spare = copy.deepcopy(self.scene.sim)
+        try:
+            for _ in range(2):
+                spare.step(1.0 / self._p('sim_rate'))
+        except SimulationDiverged:
+            pass
+        renderer = HairRenderer.for_simulator(spare)
+        renderer.mesh_of(spare)
+        if self._viewpoint() is not None:
+            renderer.mesh_of(spare, self._viewpoint())
 
     def _make_timers(self, sim_time):
         """
