@@ -341,7 +341,9 @@ def test_the_head_mesh_is_read_where_the_scene_is_built_not_on_the_publishing_th
 
 
 FIRST_FRAMES = r'''
-import pkgutil, sys, time
+import math, pkgutil, sys, time
+from geometry_msgs.msg import PoseStamped
+from hair_sim_msgs.msg import Wind
 from numba.core.registry import CPUDispatcher
 import rclpy
 import hair_sim
@@ -364,13 +366,23 @@ init_ros(['first_frames', '--ros-args', '-p', 'meshcat.enabled:=false',
 node = HairSimNode()
 untouched = (node.sim.time, node.sim.counters['steps'])
 before = loaded()
-for _ in range(12):                      # the first frames, as the timers call them
+wind = Wind()
+wind.velocity.x, wind.turbulence, wind.seed = 3.0, 0.5, 3
+node._on_wind(wind)
+for k in range(12):                      # the first frames, as the timers call them
+    pose = PoseStamped()                 # (a head turning and rising, as a tracker's)
+    pose.header.frame_id = 'world'
+    pose.header.stamp = node.get_clock().now().to_msg()
+    pose.pose.position.z = 0.002 * k
+    pose.pose.orientation.z, pose.pose.orientation.w = math.sin(0.01 * k), math.cos(0.01 * k)
+    node._on_pose(pose)
     node._on_frame()
     node._on_publish()
     time.sleep(0.02)
 after = loaded()
 print(repr({'untouched': untouched == (0.0, 0),
             'steps': node.sim.counters['steps'], 'published': node.counts['published'],
+            'poses': node.counts['poses'], 'wind': node.counts['wind'],
             'loaded_by_frames': sorted(k for k in after if after[k] > before.get(k, 0))}))
 node.destroy_node()
 rclpy.try_shutdown()
@@ -383,13 +395,14 @@ def test_the_first_frames_load_no_kernel(model):
     The node loads its step and mesh kernels before its clock starts, not in its first frames.
 
     numba loads a kernel's machine code at the kernel's first call (34-45 ms for the first
-    two steps, 31-41 ms for the first mesh); taken in the first frames, with the clock
-    running, it dropped simulated time beyond max_steps_per_frame twice within a second in
-    about half of the starts of `make demo`, and the node warned of it. A fresh process
-    (nothing loaded yet) builds the node, then runs its first frames and publishes as the
-    timers would: no hair_sim kernel gets its first compiled code there, and the running
-    simulator was not stepped by the node's own loading. (Markers left out: their first
-    encode loads one small kernel, 7.7 ms in all, at marker_rate.)
+    two steps, 31-41 ms for the first mesh, 9-10 ms for the first moving head); taken in
+    the first frames, with the clock running, it dropped simulated time beyond
+    max_steps_per_frame twice within a second in some starts of `make demo`, and the node
+    warned of it. A fresh process (nothing loaded yet) builds the node, then runs its first
+    frames and publishes as the timers would, under a turning head and a gusty wind: no
+    hair_sim kernel gets its first compiled code there, and the running simulator was not
+    stepped by the node's own loading. (Markers left out: their first encode loads one
+    small kernel, 7.7 ms in all, at marker_rate.)
     """
     import ast
     out = subprocess.run([sys.executable, '-c', FIRST_FRAMES, model], capture_output=True,
@@ -397,5 +410,6 @@ def test_the_first_frames_load_no_kernel(model):
     assert out.returncode == 0, out.stderr[-2000:]
     seen = ast.literal_eval(out.stdout.strip().splitlines()[-1])
     assert seen['steps'] > 10 and seen['published'] == 12, seen     # the frames ran
+    assert seen['poses'] == 12 and seen['wind'] == 1, seen          # and took the inputs
     assert seen['loaded_by_frames'] == [], seen
     assert seen['untouched'], seen
