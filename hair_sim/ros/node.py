@@ -282,9 +282,10 @@ class HairSimNode(Node):
 
         numba loads a kernel's machine code from its cache at the kernel's first call: the
         first two steps took 34-45 ms and the first mesh 31-41 ms, in the first frames of
-        a run, while the node's clock ran on. So in about half of the starts of `make demo`
-        the first frames moved the clock beyond max_steps_per_frame twice within a second,
-        and the node warned of dropped time before the hair had moved. Here a copy of the
+        a run, while the node's clock ran on. So in some starts of `make demo` (3 of 11 on
+        2026-12-02) the first frames moved the clock beyond max_steps_per_frame twice within
+        a second, and the node warned of dropped time before the hair had moved; on an empty
+        cache they compiled for 50 s and dropped as much. Here a copy of the
         simulator takes two steps under a head that moves (the first poses' head-motion
         filter and, in the thesis model, its charts' turn: another 9-10 ms) and the copy's
         mesh is built (whole, and from the viewpoint when one is set); the running scene is
