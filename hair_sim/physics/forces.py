@@ -348,32 +348,52 @@ def _remove_inward(f, nx, ny, nz, w):
 @njit_without_refcounts
 def hinge_end_force(s, i, length, hinge):
     """
-    Return the force at segment i's end (world) whose moments are its hinge spring's (eq. 3).
+    Return the force at segment i's end (world) with which its hinge presses it (eq. 3).
 
     hinge is the thesis model's (chart, theta, phi, trig, rest directions (head frame),
-    hinge stiffness, the head's rotation R), its state where the step starts. Eq. 3's
-    moments are -k x_theta and -k x_phi, x the deviations from the rest direction's
-    angles in the segment's chart; a force F at the end has the moments l F_theta and
-    l sin(theta) F_phi (eq. 4), so F = -(k / l) (x_theta e_theta + x_phi / sin(theta)
-    e_phi). (The step re-centres a chart first where the segment is within 45 degrees
-    of a pole, and its spring then acts in the new chart; the thesis model keeps its
-    segments away from the poles, so that is rare.)
+    hinge stiffness, the head's rotation R, theta_prev, phi_prev, inverse inertia,
+    hold), its state where the step starts; hold is (w_now, w_prev, c) of the model's
+    update (anjyo.hold_weights). The load is what an external moment must take for the
+    step to leave the segment where it is: the spring as that update takes it,
+    -k (w_now x + w_prev x-), and the motion it carries into the step, c I (x - x-), x
+    and x- the deviations from the rest direction's angles now and a step ago in the
+    segment's chart. (Eq. 3's -k x alone is that load at rest only. Right after the guard
+    stopped a stiff segment, its previous angle sits past the rest angle
+    (anjyo._stopped_keep): there the implicit update's spring pulls with about 0.4 k x,
+    and a surface that bore k x threw the segment off it by 1.5 times x, every other step:
+    bob_fringe's fringe at 1/60 s, 1 mm a step for ever.) A force F at the end has the
+    moments l F_theta and l sin(theta) F_phi (eq. 4), so F = (m_theta e_theta + m_phi /
+    sin(theta) e_phi) / l. (The step re-centres a chart first where the segment is within
+    45 degrees of a pole, and its spring then acts in the new chart; the thesis model
+    keeps its segments away from the poles, so that is rare.)
     """
-    chart, theta, phi, trig, rest_dir, k_hinge, R = hinge
+    chart, theta, phi, trig, rest_dir, k_hinge, R, theta_prev, phi_prev, inv_i, hold = hinge
+    w_now, w_prev, c_move = hold
     rx, ry, rz = rotate(R, rest_dir[s, i, 0], rest_dir[s, i, 1], rest_dir[s, i, 2])
     # the chart's rows: x, y and the polar axis z
     x0, x1, x2 = chart[s, i, 0, 0], chart[s, i, 0, 1], chart[s, i, 0, 2]
     y0, y1, y2 = chart[s, i, 1, 0], chart[s, i, 1, 1], chart[s, i, 1, 2]
     z0, z1, z2 = chart[s, i, 2, 0], chart[s, i, 2, 1], chart[s, i, 2, 2]
-    x_th = theta[s, i] - acos(min(1.0, max(-1.0, z0 * rx + z1 * ry + z2 * rz)))
+    th0 = acos(min(1.0, max(-1.0, z0 * rx + z1 * ry + z2 * rz)))
+    x_th = theta[s, i] - th0
     x_ph = phi[s, i] - atan2(y0 * rx + y1 * ry + y2 * rz, x0 * rx + x1 * ry + x2 * rz)
+    turn_ph = phi[s, i] - phi_prev[s, i]
     while x_ph > pi:
         x_ph -= 2.0 * pi
     while x_ph <= -pi:
         x_ph += 2.0 * pi
+    while turn_ph > pi:
+        turn_ph -= 2.0 * pi
+    while turn_ph <= -pi:
+        turn_ph += 2.0 * pi
+    k = k_hinge[s, i]
+    moving = c_move / inv_i[s, i]
+    turn_th = theta[s, i] - theta_prev[s, i]
+    m_th = -k * (w_now * x_th + w_prev * (x_th - turn_th)) + moving * turn_th
+    m_ph = -k * (w_now * x_ph + w_prev * (x_ph - turn_ph)) + moving * turn_ph
     st, ct, sp, cp = trig[s, i, 0], trig[s, i, 1], trig[s, i, 2], trig[s, i, 3]
-    f_th = -k_hinge[s, i] * x_th / length[s, i]
-    f_ph = -k_hinge[s, i] * x_ph / (length[s, i] * max(st, 1e-3))
+    f_th = m_th / length[s, i]
+    f_ph = m_ph / (length[s, i] * max(st, 1e-3))
     # along e_theta and e_phi (fig. 4.3, as anjyo._moments_of_trig)
     a, b, c = f_th * ct * cp - f_ph * sp, f_th * ct * sp + f_ph * cp, -f_th * st
     return a * x0 + b * y0 + c * z0, a * x1 + b * y1 + c * z1, a * x2 + b * y2 + c * z2
@@ -593,11 +613,17 @@ def reaction_constraint_forces(strands,
                 w = _contact_weight(dq, r)
                 borne = -w * min(fn, 0.0) if drop_input else 0.0
                 if hinge is not None:
-                    # at most what the input force and the hinge spring press on the
-                    # surface with together (see above); the spring's force at Q has its
-                    # moment: its force at the end over tt
+                    # at most what presses this segment on Q (see above): its own loads'
+                    # moment about its start (eq. 4: the distributed force at half its
+                    # length, the end force and the hinge spring, as forces at the end) over
+                    # Q's lever tt. (fn also holds the previous segment's forces, which turn
+                    # that segment and not this one: bearing them too threw the tips of
+                    # side_swept_long and bob_fringe off the head and back every step)
                     sx, sy, sz = hinge_end_force(s, i, length, hinge)
-                    borne = min(borne, max(0.0, -(fn + (sx * nx + sy * ny + sz * nz) / tt)))
+                    own = ((0.5 * f_dist[s, i, 0] + f_end[s, i, 0] + sx) * nx
+                           + (0.5 * f_dist[s, i, 1] + f_end[s, i, 1] + sy) * ny
+                           + (0.5 * f_dist[s, i, 2] + f_end[s, i, 2] + sz) * nz)
+                    borne = min(borne, max(0.0, -own / tt))
                 mag = borne + k * max(r - dq, 0.0) - w * c * (
                     vx * nx + vy * ny + vz * nz)                               # eq. 10
                 if force_at_q:

@@ -6,6 +6,7 @@ import pytest
 from hair_sim import DEFAULT_DT, HairSimulator
 from hair_sim.physics import forces
 from hair_sim.bench.scenarios import drive, violent
+from hair_sim.physics.solvers.anjyo import hold_weights, IMPLICIT
 
 
 def world_spheres(sim):
@@ -340,7 +341,8 @@ def _horizontal_segment_on_a_sphere(alpha, k, length=0.05):
     theta, phi = np.full((1, 1), np.pi / 2), np.zeros((1, 1))
     trig = np.array([[[1.0, 0.0, 0.0, 1.0]]])            # sin, cos of theta; of phi
     rest = np.array([[[np.cos(alpha), 0.0, np.sin(alpha)]]])
-    hinge = (chart, theta, phi, trig, rest, np.full((1, 1), k), np.eye(3))
+    hinge = (chart, theta, phi, trig, rest, np.full((1, 1), k), np.eye(3), theta.copy(),
+             phi.copy(), np.ones((1, 1)), hold_weights(IMPLICIT, 12.0, 1.0 / 60))  # at rest
     return strands, bodies, hinge
 
 
@@ -398,7 +400,8 @@ def test_the_hinge_end_force_has_the_moments_of_eq_3(seed):
     k, length = rng.uniform(1e-5, 1e-3), rng.uniform(0.01, 0.05)
     hinge = (chart, np.full((1, 1), theta), np.full((1, 1), phi),
              np.array([[[np.sin(theta), np.cos(theta), np.sin(phi), np.cos(phi)]]]),
-             (R.T @ rest_world)[None, None], np.full((1, 1), k), R)
+             (R.T @ rest_world)[None, None], np.full((1, 1), k), R, np.full((1, 1), theta),
+             np.full((1, 1), phi), np.ones((1, 1)), hold_weights(IMPLICIT, 12.0, 1.0 / 60))
     f = forces.hinge_end_force(0, 0, np.full((1, 1), length), hinge)
     C = tuple(chart[0, 0].ravel())
     m_th, m_ph = _moments_of_trig(C, np.sin(theta), np.cos(theta), np.sin(phi), np.cos(phi),
@@ -410,16 +413,63 @@ def test_the_hinge_end_force_has_the_moments_of_eq_3(seed):
     assert m_ph == pytest.approx(-k * x_ph, rel=1e-9, abs=1e-15)
 
 
-@pytest.mark.parametrize('lift_over_weight', [0.25, 0.5, 0.9, 1.1, 2.0])
+@pytest.mark.parametrize('integrator', ['explicit', 'implicit'])
+@pytest.mark.parametrize('seed', range(4))
+def test_the_hinge_end_force_is_what_holds_a_moving_segment_where_it_is(seed, integrator):
+    """
+    Taken against its moments by eq. 4, the thesis model's update leaves the segment put.
+
+    The load eq. 7 may bear of the hinge is what the update of eqs. 1-6 needs from outside
+    to keep the angles where they are: its spring as the update takes it and the motion
+    the last step carries in. Checked against _next_deviation itself, for a segment
+    moving (theta_prev, phi_prev away from theta, phi), any chart, stiffness and step;
+    at rest it is eq. 3's -k x (the test above). With eq. 3's -k x as the load, right
+    after the guard stopped a stiff segment (its previous angles past its rest angles),
+    the surface threw it off by 1.5 times its deviation.
+    """
+    from hair_sim.physics.solvers import anjyo
+    rng = np.random.default_rng(seed)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    chart = q.T[None, None]
+    theta = rng.uniform(np.pi / 4, 3 * np.pi / 4)
+    phi = rng.uniform(-np.pi, np.pi)
+    theta_prev, phi_prev = theta + rng.normal(0.0, 0.1), phi + rng.normal(0.0, 0.1)
+    rest_world = rng.normal(size=3)
+    rest_world /= np.linalg.norm(rest_world)
+    k, length = 10 ** rng.uniform(-6, -3), rng.uniform(0.01, 0.05)
+    inv_i = 3.0 / (2.5e-3 * length ** 3)               # a rod of 2.5 g/m about its end
+    damping, h = rng.uniform(0.0, 20.0), rng.choice([1 / 60, 1 / 240])
+    method = anjyo.EXPLICIT if integrator == 'explicit' else anjyo.IMPLICIT
+    hinge = (chart, np.full((1, 1), theta), np.full((1, 1), phi),
+             np.array([[[np.sin(theta), np.cos(theta), np.sin(phi), np.cos(phi)]]]),
+             rest_world[None, None], np.full((1, 1), k), np.eye(3),
+             np.full((1, 1), theta_prev), np.full((1, 1), phi_prev), np.full((1, 1), inv_i),
+             hold_weights(method, damping, h))
+    f = forces.hinge_end_force(0, 0, np.full((1, 1), length), hinge)
+    C = tuple(chart[0, 0].ravel())
+    m_th, m_ph = anjyo._moments_of_trig(C, np.sin(theta), np.cos(theta), np.sin(phi),
+                                        np.cos(phi), length, (0.0, 0.0, 0.0), f)
+    in_chart = chart[0, 0] @ rest_world
+    x_th = theta - np.arccos(in_chart[2])
+    x_ph = (phi - np.arctan2(in_chart[1], in_chart[0]) + np.pi) % (2 * np.pi) - np.pi
+    for x, xp, m in ((x_th, x_th - (theta - theta_prev), m_th),
+                     (x_ph, x_ph - (phi - phi_prev), m_ph)):
+        held = anjyo._next_deviation(x, xp, -m, k, inv_i, damping, h, method)
+        assert held == pytest.approx(x, rel=1e-9, abs=1e-12)
+
+
+@pytest.mark.parametrize('lift_over_weight', [0.25, 0.5, 0.9, 1.1, 1.5, 2.0, 2.5])
 def test_a_chord_on_a_sphere_bears_what_the_forces_and_the_hinge_press_on_it(
         lift_over_weight):
     """
     Eq. 10, the same: a segment across the top of a sphere, touching it at its middle Q.
 
-    Its ends are clear of the sphere; at Q (tt = 1/2) the input force interpolated from
-    the ends presses with its weight W, and the hinge spring's force at the end, k alpha
-    / l, lifts Q with twice that (the same moment at half the lever). The surface bears
-    W less the lift while the weight wins, and nothing when the spring does.
+    Its ends are clear of the sphere. Eq. 10's input force at Q, interpolated from the
+    ends, is its weight W (half of the segment's 2 W; the start's share is none: no
+    segment before it). The segment turns about its start (eq. 4): its weight's moment is
+    2 W l / 2, the hinge lifts with k alpha, and Q's lever is l / 2, so Q is pressed with
+    at most (W l - k alpha) / (l / 2) = 2 W - lift_at_q. The surface bears the lesser,
+    and nothing when the spring wins.
     """
     weight, length, k = 0.02, 0.1, 1e-2
     lift_at_q = lift_over_weight * weight
@@ -428,10 +478,48 @@ def test_a_chord_on_a_sphere_bears_what_the_forces_and_the_hinge_press_on_it(
     pos = strands.pos
     pos[0, :, 0] += 0.5 * length                 # across the top: x from -l/2 to l/2
     assert np.linalg.norm(pos[0, 1]) > 0.1 + forces.CONTACT_SKIN     # the end is clear
-    f_dist = np.array([[[0.0, 0.0, -2.0 * weight]]])   # at Q: half of it, from the end
+    f_dist = np.array([[[0.0, 0.0, -2.0 * weight]]])
     f_end = np.zeros((1, 1, 3))
     n = _react_with_hinge(strands, bodies, (f_dist, f_end), hinge)
     assert n == 1
     borne = f_end[0, 0, 2] / 0.5                  # applied at Q, moved to the end by tt
-    assert borne == pytest.approx(max(0.0, weight - lift_at_q), abs=1e-12)
+    pressing_q = (2.0 * weight * length / 2 - k * alpha) / (length / 2)
+    assert borne == pytest.approx(min(weight, max(0.0, pressing_q)), abs=1e-12)
     np.testing.assert_array_equal(f_end[0, 0, :2], [0.0, 0.0])
+
+
+@pytest.mark.parametrize('push_on_start', [0.0, 0.01, 0.05, 0.2])
+def test_a_chord_bears_nothing_of_the_segment_before_it(push_on_start):
+    """
+    Eq. 10 on the second segment of a strand: the force on its start turns the first one.
+
+    Two 5 cm segments along x, the second across the top of a sphere (touching it at its
+    middle Q), no hinge springs, only the second's weight W. The first segment's end (the
+    second's start) is pushed down by push_on_start. In the thesis model a segment turns
+    about its start under its own loads only (eq. 4), so what presses the second on Q is
+    its weight's moment over Q's lever, 2 W l / 2 / (l / 2) = 2 W, capped by eq. 10's
+    interpolated force (W, plus half the push). Bearing the push as well left the second
+    segment's moments pointing away from the sphere, and it was thrown off and fell back
+    every step (side_swept_long's tips at 1/60 s, 3-12 mm a step for ever).
+    """
+    weight, length = 0.02, 0.05
+    x = np.array([-1.5, -0.5, 0.5]) * length
+    pos = np.stack([x, np.zeros(3), np.full(3, 0.1)], axis=1)[None]
+    strands = forces.Strands(pos=pos, pos_prev=pos.copy(), vel=np.zeros_like(pos),
+                             length=np.full((1, 2), length), mass=np.ones((1, 2)))
+    bodies = forces.Bodies(spheres=np.array([[0.0, 0.0, 0.0, 0.1]]),
+                           sphere_vel=np.zeros((1, 3)), masks=np.array([1], dtype=np.int64))
+    chart = np.tile(np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]]), (1, 2, 1, 1))
+    theta, phi = np.full((1, 2), np.pi / 2), np.zeros((1, 2))
+    trig = np.tile([1.0, 0.0, 0.0, 1.0], (1, 2, 1))
+    rest = np.tile([1.0, 0.0, 0.0], (1, 2, 1))
+    hinge = (chart, theta, phi, trig, rest, np.zeros((1, 2)), np.eye(3), theta.copy(),
+             phi.copy(), np.ones((1, 2)), hold_weights(IMPLICIT, 12.0, 1.0 / 60))
+    f_dist = np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, -2.0 * weight]]])
+    f_end = np.array([[[0.0, 0.0, -push_on_start], [0.0, 0.0, 0.0]]])
+    assert _react_with_hinge(strands, bodies, (f_dist, f_end), hinge) >= 1
+    borne = f_end[0, 1, 2] / 0.5                  # applied at Q, moved to the end by tt
+    interpolated = 0.5 * push_on_start + weight
+    assert borne == pytest.approx(min(interpolated, 2.0 * weight), abs=1e-12)
+    # what is left of the second segment's own loads still presses it on the sphere
+    assert 0.5 * f_dist[0, 1, 2] + f_end[0, 1, 2] <= 1e-15

@@ -261,6 +261,22 @@ def _next_deviation(x, xp, moment, k, inv_i, damping, h, integrator):
 
 
 @njit_without_refcounts
+def hold_weights(integrator, damping, h):
+    """
+    Return (w_now, w_prev, c) of the moment that holds an angle where it is.
+
+    The external moment with which _next_deviation leaves an angle put (x+ = x) is
+    M = k (w_now x + w_prev x-) - c I (x - x-).
+
+    explicit: x = 2x - x- - gamma h (x - x-) + h^2 (-k x + M) / I gives (1, 0, (1 - gamma
+    h) / h^2); implicit: (W_NEXT + W_NOW, W_PREV, (1 - b) / h^2), b = damping h / 2.
+    """
+    if integrator == EXPLICIT:
+        return 1.0, 0.0, (1.0 - damping * h) / (h * h)
+    return W_NEXT + W_NOW, W_PREV, (1.0 - 0.5 * damping * h) / (h * h)
+
+
+@njit_without_refcounts
 def _stopped_keep(a, b):
     """
     Return the share of a stopped segment's deviation its previous angle keeps.
@@ -688,7 +704,10 @@ def thesis_substep(state,
                                               False,
                                               forces,
                                               (state.chart, state.theta, state.phi, state.trig,
-                                               state.rest_dir, state.k_hinge, head.R))
+                                               state.rest_dir, state.k_hinge, head.R,
+                                               state.theta_prev, state.phi_prev,
+                                               state.inv_inertia,
+                                               hold_weights(integrator, damping, h)))
     segments = integrate_strands(state, strands, forces, head.R, attach.roots, bodies,
                                  settings.collisions, damping, h, integrator, stats)
     return checks, contacts, walls, segments
@@ -780,10 +799,24 @@ class AnjyoSolver:
                           rest_dir=self.rest_dir, inv_inertia=self.inv_inertia,
                           k_hinge=self.k_hinge, packed=self.packed, turned=self.turned)
 
-    def contact_hinge(self, head):
-        """Return the hinge springs (eq. 3) as reaction_constraint_forces takes them."""
+    def contact_hinge(self, head, h, h_prev, params):
+        """
+        Return the hinge springs (eq. 3) as reaction_constraint_forces takes them.
+
+        For a step of h after one of h_prev: the previous angles as match_previous_step
+        will move them (copies; the kernels one by one, where step() moves them after the
+        forces), as thesis_substep has them.
+        """
+        theta_prev, phi_prev = self.theta_prev, self.phi_prev
+        if h != h_prev:
+            r = h / h_prev
+            theta_prev = self.theta - r * (self.theta - self.theta_prev)
+            phi_prev = self.phi - r * (np.remainder(self.phi - self.phi_prev + pi, 2.0 * pi)
+                                       - pi)
         return (self.chart, self.theta, self.phi, self.trig, self.rest_dir, self.k_hinge,
-                head.R)
+                head.R, theta_prev, phi_prev, self.inv_inertia,
+                hold_weights(EXPLICIT if params.integrator == 'explicit' else IMPLICIT,
+                             params.damping, h))
 
     def place(self, sim, world_dir):
         """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""

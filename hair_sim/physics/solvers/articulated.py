@@ -2477,7 +2477,7 @@ class ArticulatedSolver:
                           shape_dir=self.shape_dir)
 
     @staticmethod
-    def contact_hinge(head):
+    def contact_hinge(head, h, h_prev, params):
         """Return None: the joint springs act in the chain, with the contacts (implicit)."""
         return None
 
