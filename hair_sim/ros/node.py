@@ -22,6 +22,7 @@ import errno
 import functools
 import math
 import os
+import re
 import signal
 import sys
 import threading
@@ -69,6 +70,12 @@ from hair_sim.sinks.meshcat_sink import CAMERA_VIEWS
 from hair_sim.sinks.mesh_msg import hair_mesh_cdr, hair_mesh_topology_cdr, hair_state_cdr
 
 LATENCY_WINDOW = 600            # publishes kept for the latency percentiles
+# meshcat.zmq_url: a server's tcp://host:port (a name, an IPv4 address or a bracketed IPv6
+# one). Anything starting with tcp:// was taken: tcp://localhost or tcp://localhost:abc then
+# warned 'meshcat unavailable (Invalid argument ...); retrying' every 5 s for ever, and
+# tcp://localhost:99999 waited without a word
+_ZMQ_URL = re.compile(r'tcp://(?:\[[0-9A-Fa-f:.]{2,45}\]|[A-Za-z0-9][A-Za-z0-9.-]{0,252})'
+                      r':([0-9]{1,5})\Z')
 MAX_MESSAGE = 300               # characters of a refusal reason sent back
 # Requests (and answers) wait in a keep-last history of this depth: rmw_fastrtps drops the
 # oldest beyond it. The default 10 lost loads fired at 40 a second whenever the executor
@@ -562,10 +569,11 @@ class HairSimNode(Node):
             if bad or not new['hairstyle_dirs']:
                 return 'hairstyle_dirs: %s is not a directory' % (bad[0] if bad else
                                                                   '(none given)')
-        if 'meshcat.zmq_url' in new and new['meshcat.zmq_url'] and (
-                not new['meshcat.zmq_url'].startswith('tcp://')
-                or len(new['meshcat.zmq_url']) > 200):
-            return 'meshcat.zmq_url must be empty or tcp://host:port'
+        if 'meshcat.zmq_url' in new and new['meshcat.zmq_url']:
+            url = _ZMQ_URL.match(new['meshcat.zmq_url'])
+            if url is None or not 1 <= int(url.group(1)) <= 65535:
+                return ('meshcat.zmq_url must be empty or tcp://host:port (port 1-65535), '
+                        'not %r' % new['meshcat.zmq_url'][:80])
         if 'meshcat.view' in new and new['meshcat.view'] not in CAMERA_VIEWS:
             return 'meshcat.view must be one of %s, not %r' % (', '.join(CAMERA_VIEWS),
                                                                new['meshcat.view'][:40])

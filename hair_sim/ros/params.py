@@ -41,7 +41,7 @@ NODE_PARAMETERS = {
     'publish_state': (True, 'publish hair_state (HairState)', None),
     'meshcat.enabled': (False, 'stream the hair to a meshcat viewer', None),
     'meshcat.rate': (20.0, 'meshcat frames per second', (0.5, 120.0)),
-    'meshcat.zmq_url': ('', 'meshcat server to use; empty starts one', None),
+    'meshcat.zmq_url': ('', 'meshcat server to use, tcp://host:port; empty starts one', None),
     'meshcat.view': ('three_quarter', 'meshcat camera, 0.45 m from the head: three_quarter, '
                      'front, side or back', None),
     'meshcat.show_spheres': (False, 'draw the collision spheres instead of the head mesh '

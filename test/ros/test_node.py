@@ -128,7 +128,13 @@ def test_parameter_changes_take_effect_or_are_refused(node_env):
                           (Parameter('publish_rate', value=0.0), 'publish_rate'),
                           (Parameter('physics.integrator', value='rk4'), 'integrator'),
                           (Parameter('viewpoint', value=[0.0, float('nan'), 1.0]), 'finite'),
-                          (Parameter('meshcat.view', value='sideways'), 'meshcat.view')]:
+                          (Parameter('meshcat.view', value='sideways'), 'meshcat.view')] + [
+            # a server's address: tcp://host:port, and nothing after it (a NUL cut it
+            # short in the C layers)
+            (Parameter('meshcat.zmq_url', value=url), 'meshcat.zmq_url')
+            for url in ('tcp://127.0.0.1:6000\x00;rm', 'tcp://localhost', 'tcp://:6000',
+                        'tcp://localhost:99999', 'tcp://localhost:0', 'tcp://local host:6000',
+                        'tcp://localhost:6000\n', 'tcp://localhost:60x0')]:
         res = node.set_parameters([prm])
         assert not res[0].successful and fragment in res[0].reason, (prm.name, res[0].reason)
     res = node.set_parameters_atomically([Parameter('physics.integrator', value='explicit'),
