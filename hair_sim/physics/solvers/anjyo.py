@@ -809,10 +809,7 @@ class AnjyoSolver:
         """
         theta_prev, phi_prev = self.theta_prev, self.phi_prev
         if h != h_prev:
-            r = h / h_prev
-            theta_prev = self.theta - r * (self.theta - self.theta_prev)
-            phi_prev = self.phi - r * (np.remainder(self.phi - self.phi_prev + pi, 2.0 * pi)
-                                       - pi)
+            theta_prev, phi_prev = self._previous_angles_for(h / h_prev)
         return (self.chart, self.theta, self.phi, self.trig, self.rest_dir, self.k_hinge,
                 head.R, theta_prev, phi_prev, self.inv_inertia,
                 hold_weights(EXPLICIT if params.integrator == 'explicit' else IMPLICIT,
@@ -863,10 +860,12 @@ class AnjyoSolver:
         """
         if h == h_prev:
             return
-        r = h / h_prev
-        self.theta_prev[:] = self.theta - r * (self.theta - self.theta_prev)
+        self.theta_prev[:], self.phi_prev[:] = self._previous_angles_for(h / h_prev)
+
+    def _previous_angles_for(self, r):
+        """Return (theta_prev, phi_prev) moved for a step r times the last (new arrays)."""
         turn = np.remainder(self.phi - self.phi_prev + pi, 2.0 * pi) - pi
-        self.phi_prev[:] = self.phi - r * turn
+        return self.theta - r * (self.theta - self.theta_prev), self.phi - r * turn
 
     def substep(self, sim, h, head, bodies, settings):
         """Take a whole step (forces and eqs. 1-6) in one kernel call; see thesis_substep."""
