@@ -250,3 +250,13 @@ def vector_lengths(v):
         scaled = big * np.linalg.norm(v / big[..., None], axis=-1)
     kept = np.isfinite(plain) & (plain >= _SMALLEST_PLAIN_LENGTH)
     return np.where(kept, plain, np.where(big > 0.0, scaled, big))
+
+
+@njit_without_refcounts
+def wrap_angle(a):
+    """Wrap an angle difference into (-pi, pi]."""
+    while a > pi:
+        a -= 2.0 * pi
+    while a <= -pi:
+        a += 2.0 * pi
+    return a

@@ -17,7 +17,8 @@ from math import acos, atan2, pi, sqrt
 import numpy as np
 
 from hair_sim.kernels import njit_without_refcounts
-from hair_sim.vecmath import nearest_on_spheres, perpendicular_unit, sin_vectorizable
+from hair_sim.vecmath import (nearest_on_spheres, perpendicular_unit, sin_vectorizable,
+                              wrap_angle)
 
 GUARD_MARGIN = 2e-4          # m: guard_segment's default lift, and the contact weight's
 #                              full-contact band (_contact_weight)
@@ -377,15 +378,8 @@ def hinge_end_force(s, i, length, hinge):
     th0 = acos(min(1.0, max(-1.0, z0 * rx + z1 * ry + z2 * rz)))
     x_th = theta[s, i] - th0
     x_ph = phi[s, i] - atan2(y0 * rx + y1 * ry + y2 * rz, x0 * rx + x1 * ry + x2 * rz)
-    turn_ph = phi[s, i] - phi_prev[s, i]
-    while x_ph > pi:
-        x_ph -= 2.0 * pi
-    while x_ph <= -pi:
-        x_ph += 2.0 * pi
-    while turn_ph > pi:
-        turn_ph -= 2.0 * pi
-    while turn_ph <= -pi:
-        turn_ph += 2.0 * pi
+    x_ph = wrap_angle(x_ph)
+    turn_ph = wrap_angle(phi[s, i] - phi_prev[s, i])
     k = k_hinge[s, i]
     moving = c_move / inv_i[s, i]
     turn_th = theta[s, i] - theta_prev[s, i]

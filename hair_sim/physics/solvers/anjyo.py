@@ -35,7 +35,7 @@ from hair_sim.physics.forces import (explicit_stability_problem, external_forces
                                      GUARD_MOVES, guard_segment, MAX_RATE, MIN_SIN_THETA,
                                      place_with_head, reaction_constraint_forces, RECHARTS,
                                      rotate, strip_springs, TURN_CLAMPS)
-from hair_sim.vecmath import atan2_vectorizable, perpendicular_unit
+from hair_sim.vecmath import atan2_vectorizable, perpendicular_unit, wrap_angle
 
 POLE_COS = cos(pi / 4.0)     # re-chart when |cos(theta)| exceeds this (45 deg from a pole)
 MAX_TURN = 0.35              # rad: largest change of theta or phi in one step (guard)
@@ -54,16 +54,6 @@ AnjyoState = namedtuple('AnjyoState', ['theta', 'phi', 'theta_prev', 'phi_prev',
                                        'chart', 'rest_dir', 'inv_inertia', 'k_hinge',
                                        'packed', 'turned'])
 SIN_TH, COS_TH, SIN_PH, COS_PH = 0, 1, 2, 3
-
-
-@njit_without_refcounts
-def _wrap(a):
-    """Wrap an angle difference into (-pi, pi]."""
-    while a > pi:
-        a -= 2.0 * pi
-    while a <= -pi:
-        a += 2.0 * pi
-    return a
 
 
 @njit_without_refcounts
@@ -260,6 +250,11 @@ def _next_deviation(x, xp, moment, k, inv_i, damping, h, integrator):
         1.0 + a * W_NEXT + b)
 
 
+def _integrator_code(params):
+    """Return EXPLICIT or IMPLICIT for params.integrator, as the kernels take it."""
+    return EXPLICIT if params.integrator == 'explicit' else IMPLICIT
+
+
 @njit_without_refcounts
 def hold_weights(integrator, damping, h):
     """
@@ -360,7 +355,7 @@ def _pack_segments(interleaved,
 
 @njit_without_refcounts
 def _wrap_once(a):
-    """_wrap for |a| < WRAP_ONCE: one select each way, no loop (vectorisable)."""
+    """wrap_angle for |a| < WRAP_ONCE: one select each way, no loop (vectorisable)."""
     a = a - 2.0 * pi if a > pi else a
     return a + 2.0 * pi if a <= -pi else a
 
@@ -489,7 +484,7 @@ def _turn_segment_exactly(state,
     Turn segment (s, i), slot j of the block, with its chart re-centred if need be.
 
     The path for the few segments _turn_packed_segments marks; libm's acos and atan2, and
-    _wrap's loops. Writes the rows of state.turned and the sine of theta eqs. 1-6 used
+    wrap_angle's loops. Writes the rows of state.turned and the sine of theta eqs. 1-6 used
     (packed[PACK_SIN_TH]). Returns (re-charted, clamped) as 0 or 1.
     """
     theta, phi, theta_prev, phi_prev = state.theta, state.phi, state.theta_prev, state.phi_prev
@@ -514,8 +509,8 @@ def _turn_segment_exactly(state,
     ii = state.inv_inertia[s, i]
     x_th = th - th0                 # deviations from the rest angles (eq. 3)
     x_thp = thp - th0
-    x_ph = _wrap(ph - ph0)
-    x_php = x_ph - _wrap(ph - php)
+    x_ph = wrap_angle(ph - ph0)
+    x_php = x_ph - wrap_angle(ph - php)
     d_th = _next_deviation(x_th, x_thp, m_th, k, ii, damping, h, integrator) - x_th
     d_ph = _next_deviation(x_ph, x_php, m_ph, k, ii, damping, h, integrator) - x_ph
     packed[PACK_SIN_TH * BLOCK + j] = st
@@ -625,7 +620,7 @@ def integrate_strands(state,
                     keep = _stopped_keep(state.k_hinge[s, i] * state.inv_inertia[s, i] * h * h,
                                          0.5 * damping * h)
                     theta_prev[s, i] = rest_th + keep * (new_th - rest_th)
-                    phi_prev[s, i] = new_ph - (1.0 - keep) * _wrap(new_ph - rest_ph)
+                    phi_prev[s, i] = new_ph - (1.0 - keep) * wrap_angle(new_ph - rest_ph)
                 else:
                     theta_prev[s, i] = new_th
                     phi_prev[s, i] = new_ph
@@ -634,7 +629,7 @@ def integrate_strands(state,
                 theta_prev[s, i] = turned[TURN_TH * BLOCK + j]
                 phi_prev[s, i] = new_ph - turned[TURN_D_PH * BLOCK + j]
             trig[s, i, SIN_TH], trig[s, i, COS_TH], trig[s, i, SIN_PH], trig[s, i, COS_PH] = tr
-            wrapped = _wrap(new_ph)
+            wrapped = wrap_angle(new_ph)
             phi_prev[s, i] += wrapped - new_ph
             theta[s, i] = new_th
             phi[s, i] = wrapped
@@ -812,8 +807,7 @@ class AnjyoSolver:
             theta_prev, phi_prev = self._previous_angles_for(h / h_prev)
         return (self.chart, self.theta, self.phi, self.trig, self.rest_dir, self.k_hinge,
                 head.R, theta_prev, phi_prev, self.inv_inertia,
-                hold_weights(EXPLICIT if params.integrator == 'explicit' else IMPLICIT,
-                             params.damping, h))
+                hold_weights(_integrator_code(params), params.damping, h))
 
     def place(self, sim, world_dir):
         """Put every segment along world_dir (n_strands, n_segments, 3), at rest."""
@@ -884,7 +878,7 @@ class AnjyoSolver:
             settings,
             sim.last_dt,
             h,
-            EXPLICIT if p.integrator == 'explicit' else IMPLICIT,
+            _integrator_code(p),
             p.damping,
             sim.stats,
         )
@@ -912,7 +906,7 @@ class AnjyoSolver:
             p.collisions,
             p.damping,
             float(strand_h[0]),
-            EXPLICIT if p.integrator == 'explicit' else IMPLICIT,
+            _integrator_code(p),
             sim.stats,
         )
 
