@@ -85,11 +85,25 @@ def test_a_bound_that_never_binds_changes_nothing(long_style):
     assert free.time == roomy.time and roomy.time_dropped == 0.0
 
 
-def test_the_thesis_model_takes_every_step_whole(long_style):
-    """Its cost does not grow with the swing (one substep, MAX_TURN), so nothing is cut."""
-    sim, t, records = gale_run(long_style, 1, seconds=0.5, model='anjyo')
+def test_the_thesis_models_substeps_are_set_by_the_step_not_the_swing(long_style):
+    """
+    Take a fixed number of substeps, whatever the swing.
+
+    MAX_TURN bounds a turn, so the cost does not grow with it: with collisions and
+    springs a 1/60 s step is two substeps of 1/120 s (CONTACT_SUBSTEP) through the whole
+    gale, and a bound under one step's work cuts every step to one of them, the rest
+    counted.
+    """
+    sim, t, records = gale_run(long_style, None, seconds=0.5, model='anjyo')
+    n_strands, n_seg = sim.pos.shape[0], sim.pos.shape[1] - 1
+    assert {r[0] for r in records} == {2 * n_strands * n_seg}
+    assert sim.counters['substeps'] == 2 * sim.counters['steps']
     assert sim.counters['shortened_steps'] == 0 and sim.time_dropped == 0.0
-    assert all(abs(r[2] - DT) < 1e-12 for r in records)
+    cut, t, records = gale_run(long_style, 1, seconds=0.5, model='anjyo')
+    assert all(abs(r[2] - DT / 2) < 1e-12 for r in records)
+    assert cut.counters['shortened_steps'] == cut.counters['steps']
+    assert abs(cut.time + cut.time_dropped - (t + DT)) < 1e-9
+    assert cut.counters['diverged'] == 0 and max(r[3] for r in records) <= 1e-3
 
 
 @pytest.mark.parametrize('model', ['anjyo', 'articulated'])

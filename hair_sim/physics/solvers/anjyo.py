@@ -24,7 +24,7 @@ not the mechanics of a chain (see solvers/articulated.py).
 """
 
 from collections import namedtuple
-from math import acos, atan2, cos, pi, sin, sqrt
+from math import acos, atan2, ceil, cos, pi, sin, sqrt
 
 from numba import njit
 import numpy as np
@@ -39,6 +39,15 @@ from hair_sim.vecmath import atan2_vectorizable, perpendicular_unit, wrap_angle
 
 POLE_COS = cos(pi / 4.0)     # re-chart when |cos(theta)| exceeds this (45 deg from a pole)
 MAX_TURN = 0.35              # rad: largest change of theta or phi in one step (guard)
+# s: longest substep with collisions and the springs of 5.2 both on. Eqs. 7-10 act
+# explicitly, and with those springs they chattered at one step per 60 Hz frame: after
+# violent motion 18 of 144 runs at 1/60 s never fell asleep (tips flipping 0.3-9 mm a
+# step), every one asleep when carried on at 1/120 s or without collisions; without the
+# springs all 144 slept, taken whole (/tmp scripts, 2026-12-02). A longer step is
+# taken in equal substeps of at most this (1/60 s: two of 1/120 s); the node's default
+# 1/240 s, any step up to 1/120 s, and any step of a scene without contacts or springs
+# are taken whole, as before.
+CONTACT_SUBSTEP = 1.0 / 120.0
 EXPLICIT = 0
 IMPLICIT = 1
 # Weights of x^{n+1}, x^n, x^{n-1} in the implicit hinge spring. (1/4, 1/2, 1/4) would be
@@ -743,6 +752,13 @@ def compensated_rest(modeled_dir, mass, length, k_hinge, params):
     return out / np.linalg.norm(out, axis=-1, keepdims=True)
 
 
+def contact_substeps(params, h):
+    """Return how many equal substeps a step of h takes (CONTACT_SUBSTEP; else 1)."""
+    if params.collisions and params.inter_strip and h > CONTACT_SUBSTEP:
+        return ceil(h / CONTACT_SUBSTEP - 1e-9)
+    return 1
+
+
 class AnjyoSolver:
     """
     Thin class over the kernels above: per-segment angles, charts and hinge constants.
@@ -755,8 +771,8 @@ class AnjyoSolver:
     still_air_drag = False          # the thesis' drag acts with the wind only (eq. 5)
     holds_modeled_walls = False     # type-2 springs act within d2, as in thesis 5.2
     retries_diverged_steps = False  # MAX_TURN bounds a step's turn; nothing saved per step
-    fused = True                    # a whole step is one kernel call (thesis_substep)
-    whole_step = False              # (one step is one substep: fused says it all)
+    fused = True                    # a whole substep is one kernel call (thesis_substep)
+    whole_step = False              # (a step's substeps are calls of their own)
     springs_before_contacts = True  # eq. 7 bears what the springs of 5.2 press with too
     uses_contacts = False        # the contact record (implicit contacts) is not read
     drops_inward_input = True    # eq. 7: the surface bears the inward input force
@@ -776,12 +792,13 @@ class AnjyoSolver:
         self.chart = np.zeros((n_s, n_seg, 3, 3))
         self.packed = np.zeros(PACK_FIELDS * BLOCK)      # integrate_strands' scratch
         self.turned = np.zeros(TURN_FIELDS * BLOCK)
-        self._whole = np.ones(n_s, dtype=np.int64)     # substeps_for: one per strand
+        self._counts = np.ones(n_s, dtype=np.int64)    # substeps_for's answer
         self.update_material(sim)
 
     def update_material(self, sim):
         """Recompute inertia, hinge stiffness (eq. 3) and rest directions from sim.params."""
         p = sim.params
+        self._params = p                                            # (substeps_for)
         self.inv_inertia = 3.0 / (sim.mass * sim.length ** 2)         # rod about its end
         self.k_hinge = p.bending_stiffness / sim.length              # cantilever, eq. 3
         self.rest_dir = np.ascontiguousarray(compensated_rest(
@@ -862,7 +879,7 @@ class AnjyoSolver:
         return self.theta - r * (self.theta - self.theta_prev), self.phi - r * turn
 
     def substep(self, sim, h, head, bodies, settings):
-        """Take a whole step (forces and eqs. 1-6) in one kernel call; see thesis_substep."""
+        """Take a whole (sub)step (forces and eqs. 1-6) in one kernel call; see thesis_substep."""
         p = sim.params
         self.match_previous_step(h, sim.last_dt)
         return self._substep_call(
@@ -884,15 +901,21 @@ class AnjyoSolver:
         )
 
     def substeps_for(self, h):
-        """Return 1 for every strand: the model takes every step whole (MAX_TURN clamps)."""
-        return self._whole
+        """
+        Return each strand's substep count for a step of h: the same for every strand.
+
+        With collisions and inter-strip springs, ceil(h / CONTACT_SUBSTEP) (a step up to
+        it is taken whole); else 1: stability_problem and MAX_TURN bound the rest.
+        """
+        self._counts[:] = contact_substeps(self._params, h)
+        return self._counts
 
     def step(self, sim, strand_h, head, strand_t):
         """
         Advance eqs. 1-6 with the forces in sim.forces; return segments updated.
 
-        strand_h is each strand's step, strand_t when it ends; this model takes every step
-        whole, so they are one h and one t (substeps_for is 1 for every strand).
+        strand_h is each strand's step, strand_t when it ends; every strand takes the same
+        substeps (substeps_for), so they are one h and one t.
         """
         p = sim.params
         self.match_previous_step(float(strand_h[0]), sim.last_dt)
@@ -917,23 +940,49 @@ class AnjyoSolver:
 
     @staticmethod
     def stability_problem(params, length, dt, margin):
-        """Return why params would be unstable at dt for these segment lengths, or None."""
-        mass = params.linear_density * length
-        inv_i = 3.0 / (mass * length ** 2)                              # rod about its end
-        k_h = params.bending_stiffness / length
-        springs = 0.0
-        if params.inter_strip:
-            springs += params.neighbor_stiffness + params.wall_stiffness + \
-                params.scalp_stiffness
-        if params.collisions:
-            springs += params.collision_stiffness
-        # per-metre springs on a segment of mass lambda l, acting at its end: k l * l^2 / I;
-        # air damping acts on the centre, explicitly
-        explicit = (0.5 * mass * params.gravity * length + springs * length ** 3) * inv_i
-        if params.integrator == 'explicit':
-            explicit = explicit + k_h * inv_i
-            if params.damping * dt > 2.0 * margin:
-                return ('damping %g/s with the explicit integrator needs dt below %.2g s'
-                        % (params.damping, 2.0 * margin / params.damping))
-        return explicit_stability_problem(explicit, params.air_damping, dt, margin,
-                                          'the %s integrator' % params.integrator)
+        """
+        Return why params would be unstable at dt for these segment lengths, or None.
+
+        Judged at the substep the step is taken in (contact_substeps): a step over
+        CONTACT_SUBSTEP with collisions and inter-strip springs is split, so eq. 6 and the
+        explicit forces act over the substep.
+        """
+        n = contact_substeps(params, dt)
+        reason = _substep_stability_problem(params, length, dt / n, margin)
+        if reason and n > 1:
+            reason += ' (a step of %.4g s is taken in %d substeps of %.4g s)' % (dt, n, dt / n)
+        return reason
+
+
+def _substep_stability_problem(params, length, dt, margin):
+    """Return why params would be unstable at a (sub)step of dt, or None (see above)."""
+    mass = params.linear_density * length
+    inv_i = 3.0 / (mass * length ** 2)                              # rod about its end
+    k_h = params.bending_stiffness / length
+    springs = 0.0
+    if params.inter_strip:
+        springs += params.neighbor_stiffness + params.wall_stiffness + \
+            params.scalp_stiffness
+    if params.collisions:
+        springs += params.collision_stiffness
+    # per-metre springs on a segment of mass lambda l, acting at its end: k l * l^2 / I;
+    # air damping acts on the centre, explicitly
+    explicit = (0.5 * mass * params.gravity * length + springs * length ** 3) * inv_i
+    if params.integrator == 'explicit':
+        explicit = explicit + k_h * inv_i
+        if params.damping * dt > 2.0 * margin:
+            return ('damping %g/s with the explicit integrator needs dt below %.2g s'
+                    % (params.damping, 2.0 * margin / params.damping))
+        # eq. 6 with its damping, x+ = 2x - x- - c h (x - x-) - w^2 h^2 x, is stable
+        # while w^2 h^2 + 2 c h < 4 (Jury's test of z^2 - (2 - c h - w^2 h^2) z + 1 -
+        # c h), at h / margin; each term alone under its own bound is not enough: at
+        # damping 200/s and 1/120 s the stress bench's hair never came to rest
+        w2 = float(np.max(explicit))
+        c = params.damping
+        if w2 > 0.0 and c > 0.0 and w2 * (dt / margin) ** 2 + 2.0 * c * dt / margin >= 4.0:
+            limit = margin * (sqrt(c * c + 4.0 * w2) - c) / w2
+            return ('unstable with the explicit integrator at dt = %.4g s: damping %g/s '
+                    'with its stiffest term at omega = %.0f rad/s needs dt below %.3g s'
+                    % (dt, c, sqrt(w2), limit))
+    return explicit_stability_problem(explicit, params.air_damping, dt, margin,
+                                      'the %s integrator' % params.integrator)
