@@ -1,11 +1,14 @@
 """
 Publish /clock at a given rate and speed, as a simulator or `ros2 bag play -r` does (process).
 
-argv: rate_hz speed duration_s [jitter]
+argv: rate_hz speed duration_s [jitter [lead_s]]
 Once a /clock subscriber is seen, the clock starts at the wall time and advances speed / rate_hz
-s every 1 / rate_hz s of wall time, for duration_s; then it says how far it went and 'done'.
-With jitter, each tick goes out up to jitter / rate_hz s early or late (seeded), as a loaded
-simulator's do; the time each carries stays regular.
+s every 1 / rate_hz s of wall time, for duration_s; then it says how far it went from its start
+and 'done'. With jitter, each tick goes out up to jitter / rate_hz s early or late (seeded), as a
+loaded simulator's do; the time each carries stays regular. With lead_s, the clock first stands
+at its start for lead_s s of wall time (a tick every 1 / rate_hz s), as a simulator's that starts
+paused: a subscriber that missed the first ticks (its side of the discovery not done yet, or its
+process not scheduled) still sees where the clock started.
 """
 
 import random
@@ -21,6 +24,7 @@ def main():
 
     rate, speed, duration = (float(v) for v in sys.argv[1:4])
     jitter = float(sys.argv[4]) if len(sys.argv) > 4 else 0.0
+    lead = float(sys.argv[5]) if len(sys.argv) > 5 else 0.0
     rng = random.Random(21)
     rclpy.init()
     node = rclpy.create_node('coarse_clock_publisher')
@@ -29,6 +33,12 @@ def main():
     while pub.get_subscription_count() == 0 and time.monotonic() < deadline:
         time.sleep(0.05)
     t = t0 = time.time()
+    msg = Clock()
+    msg.clock.sec, msg.clock.nanosec = int(t), int((t - int(t)) * 1e9)
+    stand = time.monotonic()
+    while time.monotonic() - stand < lead:
+        pub.publish(msg)
+        time.sleep(1.0 / rate)
     start = time.monotonic()
     ticks = 0
     while time.monotonic() - start < duration:

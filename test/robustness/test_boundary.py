@@ -924,14 +924,17 @@ def test_20_a_node_started_on_a_clock_that_stands_still_sends_its_hair(tmp_path)
         time.sleep(3.0)
         assert 2 <= len(states) - seen <= 5, len(states) - seen
         assert 'no /clock has arrived' in node.output()
-        # the clock runs 6 s; the hair's rate on it is counted by a subscriber in another
-        # process (this one's executor, beside the node's output pipe, took in 35 of ~90)
-        proc = start_helper('looping_clock.py', 0, 6, 0, 0, 'clock',
+        # the clock runs; the hair's rate on it is counted over 3 s by a subscriber in
+        # another process (this one's executor, beside the node's output pipe, took in 35
+        # of ~90). The clock runs until the count is in: a clock of 6 s stopped within the
+        # probe's window when the probe came up late under CI load (its 3 s then held 42
+        # messages, one gap of 0.68 s in another run: the hair of a stopped clock)
+        proc = start_helper('looping_clock.py', 0, 60, 0, 0, 'clock',
                             '--ros-args', '-r', '__ns:=/paused')
         try:
             assert 'publishing' in proc.stdout.readline()
             got = ProbeProcess(3.0, namespaces=('/paused',)).report()['/paused']['hair_state']
-            assert 'done' in proc.communicate(timeout=60)[0]
+            assert proc.poll() is None, 'the clock stopped before the probe was done'
         finally:
             if proc.poll() is None:
                 proc.kill()
@@ -971,8 +974,11 @@ def test_21_a_coarse_or_fast_simulated_clock_is_simulated_not_dropped(
     advanced, before, values = run_sim_clock(live, rate, speed, jitter)
     lost = float(values['overrun_dropped_s']) - float(before.get('overrun_dropped_s', 0.0))
     assert lost < 0.01 * advanced, (lost, advanced, values.get('overruns'))
-    assert_books_balance(before, values, advanced, speed / rate)
+    assert_books_balance(before, values, advanced)
     live.assert_healthy()
+
+
+CLOCK_LEAD_S = 2.0     # s a test's /clock stands at its start before it moves
 
 
 def run_sim_clock(live, rate, speed, jitter):
@@ -980,13 +986,15 @@ def run_sim_clock(live, rate, speed, jitter):
     Run coarse_clock.py on a node set to use_sim_time; return (advanced, before, after).
 
     advanced is how far the clock moved (s); before and after, the diagnostics before it
-    runs (the node clock stands: no /clock yet) and after it stopped.
+    runs (the node clock stands: no /clock yet) and after it stopped. The clock stands at
+    its start for CLOCK_LEAD_S first, so that the node has seen where it started when it
+    moves (see assert_books_balance).
     """
     res = live.client.set_parameters(NODE, {'use_sim_time': True})
     assert res[0].successful, res[0].reason
     try:
         before = live.values_since(time.monotonic())
-        out = run_helper('coarse_clock.py', rate, speed, 4, jitter)
+        out = run_helper('coarse_clock.py', rate, speed, 4, jitter, CLOCK_LEAD_S)
         advanced = float(out.split('advanced ')[1].split()[0])
         return advanced, before, live.values_since(time.monotonic())
     finally:
@@ -1007,17 +1015,21 @@ def clock_books(values):
             + float(values['time_dropped_s']))
 
 
-def assert_books_balance(before, after, advanced, tick):
+def assert_books_balance(before, after, advanced):
     """
     Assert the clock's `advanced` s are in the books (clock_books) between the two values.
 
-    Within 10 ms (the values' rounding, the step not yet due), less one `tick` of the
-    clock at most: the node anchors on the first /clock its frame sees, and when its
-    executor sees the second tick first, the first tick's time is neither simulated nor
-    counted (seen at 3x: 75 ms short).
+    Within 10 ms (the values' rounding, the step not yet due). The node anchors on the
+    first /clock its frame sees; the time before that is none of its clock's. A clock that
+    moved at once lost its first ticks there whenever the node saw them late: one tick (75
+    ms at 3x) when its executor took the second tick first, and 4 and 13 ticks (0.3 and
+    0.98 s) in a CI run under load (which way not caught: rclpy's /clock subscription keeps
+    the newest tick only, and a subscriber process here, under load, missed the first tick
+    of the discovery's end). Hence the clock's lead (CLOCK_LEAD_S) standing at its start:
+    anchored there, the node is to account for every tick.
     """
     books = clock_books(after) - clock_books(before)
-    assert advanced - tick - 0.01 <= books <= advanced + 0.01, (books, advanced, after)
+    assert advanced - 0.01 <= books <= advanced + 0.01, (books, advanced, after)
 
 
 # 22 --------------------------------------------------------------------------------
@@ -1048,7 +1060,7 @@ def test_22_time_the_solver_has_no_share_of_the_wall_time_for_is_counted(live):
         assert wait_for(lambda: int(live.values()['wind']) > winds, 5.0), live.values()
         advanced, before, values = run_sim_clock(live, 40.0, 3.0, 0.0)
         assert float(values['time_dropped_s']) > float(before['time_dropped_s']) + 1.0
-        assert_books_balance(before, values, advanced, 3.0 / 40.0)
+        assert_books_balance(before, values, advanced)
     finally:
         wind.publish(Wind())
         res = live.client.set_parameters(NODE, {'physics.model': 'anjyo',
